@@ -1,0 +1,136 @@
+"""Many clips: discovery, a versioned on-disk cache, the subject split and training windows."""
+
+import csv
+import dataclasses
+import hashlib
+import os
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+from ..skeleton import NUM_JOINTS
+from . import bvh, clips, profiles
+
+CACHE_VERSION = 1  # bump whenever clips.load_clip's output changes
+# The shared CMU/ACCAD set beside the repository, unless $TRAJEVAE_MOCAP says otherwise.
+DEFAULT_DATA_ROOT = Path(os.environ.get("TRAJEVAE_MOCAP") or Path(__file__).resolve().parents[3] / "shared" / "mocap")
+# Whole subjects held out for validation: one CMU subject with varied everyday
+# motion and one ACCAD subject (martial arts). No window of theirs is trained on.
+VALIDATION_SUBJECTS = ("CMU 02", "ACCAD Male2")
+WINDOW_FUTURE = 60  # 2 s at clips.NATIVE_FPS
+
+
+def cache_dir():
+    """Where loaded clips are kept: $TRAJEVAE_CACHE, else ~/.cache/trajevae."""
+    root = os.environ.get("TRAJEVAE_CACHE") or Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "trajevae"
+    return Path(root) / f"motion-v{CACHE_VERSION}-{clips.NATIVE_FPS}fps"
+
+
+def find_bvh(paths):
+    """BVH files among files and folders (searched recursively), sorted, no duplicates."""
+    found = set()
+    for path in map(Path, paths):
+        if path.is_dir():
+            found.update(p.resolve() for p in path.rglob("*") if p.suffix.lower() == ".bvh")
+        else:
+            found.add(path.resolve())
+    return sorted(found)
+
+
+def read_manifest(root=DEFAULT_DATA_ROOT):
+    """Rows of MANIFEST.csv keyed by resolved file path."""
+    root = Path(root)
+    with open(root / "MANIFEST.csv", newline="") as handle:
+        return {(root / row["file"]).resolve(): row for row in csv.DictReader(handle)}
+
+
+_STORED_FIELDS = [f.name for f in dataclasses.fields(clips.Clip) if f.name != "file"]
+
+
+def _from_array(value):
+    """A cached field back to its Python type (0-d arrays to scalars)."""
+    return value.item() if value.ndim == 0 else value
+
+
+def _cache_path(path):
+    stat = path.stat()
+    key = f"{path}|{stat.st_size}|{stat.st_mtime_ns}".encode()
+    return cache_dir() / (hashlib.sha1(key).hexdigest() + ".npz")
+
+
+def _load_cached(path):
+    """One clip from the cache, or loaded and cached; an error string if it cannot be read or mapped."""
+    path = Path(path)
+    cached = _cache_path(path)
+    if cached.exists():
+        with np.load(cached) as stored:
+            return clips.Clip(file=str(path), **{name: _from_array(stored[name]) for name in _STORED_FIELDS})
+    try:
+        clip = clips.load_clip(path)
+    except (bvh.BVHError, profiles.MappingError, OSError) as error:
+        return str(error)
+    cached.parent.mkdir(parents=True, exist_ok=True)
+    temporary = cached.with_suffix(f".{os.getpid()}.tmp.npz")
+    np.savez(temporary, **{name: getattr(clip, name) for name in _STORED_FIELDS})
+    temporary.replace(cached)
+    return clip
+
+
+def load_clips(paths, workers=None, progress=None):
+    """Load every BVH under ``paths``. Returns (clips, errors): errors are one line per bad file.
+
+    Uncached files are read in ``workers`` processes (default: all cores).
+    ``progress(done, total)`` is called as files finish.
+    """
+    files = find_bvh(paths)
+    uncached = [f for f in files if not _cache_path(f).exists()]
+    workers = workers or os.cpu_count() or 1
+    if len(uncached) > 1 and workers > 1:
+        with ProcessPoolExecutor(workers) as pool:
+            for done, _ in enumerate(pool.map(_load_cached, uncached, chunksize=1), 1):
+                if progress:
+                    progress(done, len(files))
+    loaded, errors = [], []
+    for result in map(_load_cached, files):
+        (errors if isinstance(result, str) else loaded).append(result)
+    if progress:
+        progress(len(files), len(files))
+    return loaded, errors
+
+
+def split_by_subject(clip_list, manifest, validation_subjects=VALIDATION_SUBJECTS):
+    """(train, validation) clips; a file outside the manifest is a training clip."""
+    train, validation = [], []
+    for clip in clip_list:
+        row = manifest.get(Path(clip.file).resolve())
+        (validation if row and row["subject"] in validation_subjects else train).append(clip)
+    return train, validation
+
+
+def windows(clip_list, future=WINDOW_FUTURE, stride=5):
+    """Training windows (N, 1 + future, 17, 3): an initial pose then ``future`` frames.
+
+    Each window is moved so its initial root (Hip) sits at the origin of the
+    ground plane; heights above the floor are kept. Facing is left as
+    captured (training rotates about Z at random).
+    """
+    length = 1 + future
+    parts = []
+    for clip in clip_list:
+        if clip.frames < length:
+            continue
+        starts = np.arange(0, clip.frames - length + 1, stride)
+        index = starts[:, None] + np.arange(length)[None, :]
+        parts.append(normalise(clip.positions[index]))
+    if not parts:
+        return np.zeros((0, length, NUM_JOINTS, 3), dtype=np.float32)
+    return np.concatenate(parts).astype(np.float32)
+
+
+def normalise(window):
+    """Windows (..., T, 17, 3) with the first frame's root moved to x = y = 0."""
+    shift = np.zeros_like(window[..., :1, :1, :])
+    shift[..., 0] = window[..., :1, :1, 0]
+    shift[..., 1] = window[..., :1, :1, 1]
+    return window - shift

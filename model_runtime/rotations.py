@@ -1,0 +1,65 @@
+"""Quaternion helpers (w, x, y, z), vectorised over any leading shape."""
+
+import numpy as np
+
+_AXES = {"X": 0, "Y": 1, "Z": 2}
+
+
+def axis_angle(axis, angles):
+    """Quaternions of rotations by ``angles`` (...,) radians about a principal axis 'X', 'Y' or 'Z'."""
+    half = 0.5 * np.asarray(angles, dtype=np.float64)
+    quat = np.zeros(half.shape + (4,))
+    quat[..., 0] = np.cos(half)
+    quat[..., 1 + _AXES[axis]] = np.sin(half)
+    return quat
+
+
+def multiply(a, b):
+    """Hamilton product a * b of (..., 4) quaternions (apply b, then a)."""
+    aw, ax, ay, az = np.moveaxis(a, -1, 0)
+    bw, bx, by, bz = np.moveaxis(b, -1, 0)
+    return np.stack([
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    ], axis=-1)
+
+
+def euler(angles_deg, order):
+    """Quaternions of intrinsic Euler rotations as BVH channels list them.
+
+    ``angles_deg`` is (..., 3) in the order of ``order`` (e.g. "ZYX"); the
+    rotation is R = R_order[0] @ R_order[1] @ R_order[2].
+    """
+    angles = np.radians(angles_deg)
+    quat = axis_angle(order[0], angles[..., 0])
+    for k in (1, 2):
+        quat = multiply(quat, axis_angle(order[k], angles[..., k]))
+    return quat
+
+
+def to_matrix(quat):
+    """Rotation matrices (..., 3, 3) of unit quaternions (..., 4)."""
+    w, x, y, z = np.moveaxis(quat, -1, 0)
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+    ], -2)
+
+
+def slerp(q0, q1, t):
+    """Spherical interpolation between (..., 4) quaternions at fractions t (...,)."""
+    dot = np.sum(q0 * q1, axis=-1)
+    q1 = np.where(dot[..., None] < 0, -q1, q1)
+    dot = np.abs(dot)
+    t = np.asarray(t)[..., None] * np.ones_like(dot)[..., None]
+    theta = np.arccos(np.clip(dot, -1.0, 1.0))[..., None]
+    sin_theta = np.sin(theta)
+    close = sin_theta < 1e-6
+    safe = np.where(close, 1.0, sin_theta)
+    w0 = np.where(close, 1.0 - t, np.sin((1.0 - t) * theta) / safe)
+    w1 = np.where(close, t, np.sin(t * theta) / safe)
+    out = w0 * q0 + w1 * q1
+    return out / np.linalg.norm(out, axis=-1, keepdims=True)

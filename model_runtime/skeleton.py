@@ -1,0 +1,66 @@
+"""The canonical 17-joint skeleton shared by the data, the model and the add-on.
+
+Joint names are the product's public vocabulary: the add-on's scripting API
+and rig mappings use them. The layout is the Human3.6M 17-joint skeleton the
+papers use, with our own definition of where each joint sits (see
+``model_runtime.data.profiles``).
+
+Coordinates everywhere are metres, Z up. Facing convention: a body's forward
+direction is ``cross(LHip - RHip, Z)``; e.g. with LHip at -X and RHip at +X the
+body faces +Y.
+"""
+
+import numpy as np
+
+JOINT_NAMES = (
+    "Hip", "RHip", "RKnee", "RFoot", "LHip", "LKnee", "LFoot",
+    "Spine", "Thorax", "Neck", "Head",
+    "LShoulder", "LElbow", "LWrist", "RShoulder", "RElbow", "RWrist",
+)
+PARENTS = (-1, 0, 1, 2, 0, 4, 5, 0, 7, 8, 9, 8, 11, 12, 8, 14, 15)
+NUM_JOINTS = len(JOINT_NAMES)
+JOINT_INDEX = {name: i for i, name in enumerate(JOINT_NAMES)}
+
+LEFT_RIGHT_PAIRS = (
+    ("LHip", "RHip"), ("LKnee", "RKnee"), ("LFoot", "RFoot"),
+    ("LShoulder", "RShoulder"), ("LElbow", "RElbow"), ("LWrist", "RWrist"),
+)
+
+LOWER_BODY = ("Hip", "RHip", "RKnee", "RFoot", "LHip", "LKnee", "LFoot")
+UPPER_BODY = tuple(name for name in JOINT_NAMES if name not in LOWER_BODY)
+FEET = ("RFoot", "LFoot")
+# Joints whose bone to their parent is rigid in every rig (limbs, hips, head).
+# The torso bones are not: spines and clavicles bend between the joints.
+RIGID_BONE_JOINTS = ("RHip", "RKnee", "RFoot", "LHip", "LKnee", "LFoot", "Head",
+                     "LElbow", "LWrist", "RElbow", "RWrist")
+UP_AXIS = np.array([0.0, 0.0, 1.0])
+
+
+def indices(names):
+    """Indices of joint names, in the given order."""
+    return [JOINT_INDEX[name] for name in names]
+
+
+def mirror_permutation():
+    """Index permutation that swaps every left joint with its right twin (J,)."""
+    perm = list(range(NUM_JOINTS))
+    for left, right in LEFT_RIGHT_PAIRS:
+        perm[JOINT_INDEX[left]], perm[JOINT_INDEX[right]] = JOINT_INDEX[right], JOINT_INDEX[left]
+    return np.array(perm)
+
+
+def bone_lengths(positions):
+    """Length of every bone (joint to parent) per frame: (..., J, 3) -> (..., J-1)."""
+    positions = np.asarray(positions)
+    child = np.arange(1, NUM_JOINTS)
+    parent = np.array(PARENTS[1:])
+    return np.linalg.norm(positions[..., child, :] - positions[..., parent, :], axis=-1)
+
+
+def facing(positions):
+    """Unit forward direction in the ground plane: (..., J, 3) -> (..., 3)."""
+    positions = np.asarray(positions)
+    across = positions[..., JOINT_INDEX["LHip"], :] - positions[..., JOINT_INDEX["RHip"], :]
+    forward = np.cross(across, UP_AXIS)
+    forward[..., 2] = 0.0
+    return forward / np.maximum(np.linalg.norm(forward, axis=-1, keepdims=True), 1e-9)
