@@ -3,7 +3,7 @@ PYTHON ?= python3.11
 VENV := .venv
 PY := $(VENV)/bin/python
 
-.PHONY: setup demo test bench-data clean
+.PHONY: setup demo test bench-data bench-model train evaluate clean
 
 $(VENV)/.installed: requirements.txt
 	$(PYTHON) -m venv $(VENV)
@@ -21,6 +21,15 @@ test: setup
 
 bench-data: setup
 	PYTHONPATH=. $(PY) benchmarks/load_data.py
+
+bench-model: setup
+	PYTHONPATH=. $(PY) benchmarks/inference.py
+
+train: setup
+	$(PY) -m model_runtime.train
+
+evaluate: setup
+	$(PY) -m model_runtime.evaluate --json evaluation.json
 
 clean:
 	rm -rf $(VENV) .pytest_cache

@@ -1,0 +1,154 @@
+"""``python -m model_runtime.evaluate``: TrajeVAE against baselines, as trajectories are added.
+
+For k = 0..4 trajectories in the paper's order (RFoot, LFoot, RWrist, LWrist)
+prints per method APD, ADE, FDE, MMADE, MMFDE (DLow protocol, metres),
+traj_err (mean distance of the conditioned joints to their trajectories), MPD
+(minimum pairwise distance among the K samples) and realism: bone_dev (mean
+rigid bone-length deviation from the initial pose, m), angle_out (share of
+frames outside the joint-angle limits), skating (horizontal foot speed in
+contact, m/s); the ground truth's own realism figures are printed beside.
+By default the windows come from the validation subjects; ``--data`` takes
+any BVH files or folders. The nearest-neighbour baseline searches the
+training subjects' windows. "sampler" (the diverse sampler) runs when its
+weights exist.
+"""
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from . import baselines, masks, metrics, realism, weights
+from .data import clips, dataset
+from .sampler import sample_motions
+
+METHODS = ("trajevae", "trajevae_mean", "sampler", "pinned_pose", "nearest_neighbour")
+METRICS = ("APD", "ADE", "FDE", "MMADE", "MMFDE", "traj_err", "MPD", "bone_dev", "angle_out", "skating")
+REALISM = ("bone_dev", "angle_out", "skating")
+
+
+def generate(method, model, neighbours, windows, mask, samples, generator, diverse_sampler=None):
+    """Motions (N, K, T, 17, 3) of one method for windows (N, 1 + T, 17, 3) under one mask (T, 17)."""
+    initial, future = windows[:, 0], windows[:, 1:]
+    trajectories = future * mask[None, :, :, None]
+    if method in ("trajevae", "trajevae_mean", "sampler"):
+        out = []
+        known = torch.from_numpy(np.broadcast_to(mask, (len(windows),) + mask.shape).copy())
+        for start in range(0, len(windows), 16):
+            part = slice(start, start + 16)
+            condition = (torch.from_numpy(initial[part]), torch.from_numpy(trajectories[part]), known[part])
+            with torch.no_grad():
+                if method == "sampler":
+                    motion = sample_motions(model, diverse_sampler, *condition, samples, generator)
+                else:
+                    motion = model.sample(*condition, samples, generator=generator,
+                                          use_mean=method == "trajevae_mean")
+            out.append(motion.numpy())
+        return np.concatenate(out)
+    if method == "pinned_pose":
+        return np.stack([baselines.pinned_pose(i, t, mask)[None] for i, t in zip(initial, trajectories)])
+    return np.stack([neighbours.query(i, t, mask, samples) for i, t in zip(initial, trajectories)])
+
+
+def score(motions, windows, mask, groups, limits):
+    """Metric means over windows for motions (N, K, T, 17, 3)."""
+    truth = metrics.to_protocol(windows[:, 1:])
+    rows = []
+    for n in range(len(windows)):
+        samples = metrics.to_protocol(motions[n])
+        ade, fde = metrics.ade_fde(samples, truth[n])
+        mmade, mmfde = metrics.multimodal_ade_fde(samples, truth[groups[n]])
+        rows.append((metrics.apd(samples), ade, fde, mmade, mmfde,
+                     metrics.trajectory_error(motions[n], windows[n, 1:][None], mask), metrics.mpd(samples)))
+    rows = np.array(rows, dtype=np.float64)
+    means = list(np.nanmean(rows, axis=0)) if mask.any() else list(rows.mean(axis=0))
+    means += realism_figures(motions, windows, limits)
+    return {name: (None if np.isnan(v) else round(float(v), 4)) for name, v in zip(METRICS, means)}
+
+
+def realism_figures(motions, windows, limits):
+    """bone_dev, angle_out, skating of motions (N, K, T, 17, 3) from windows' initial poses."""
+    initial = np.broadcast_to(windows[:, None, 0], motions.shape[:2] + windows.shape[2:])
+    return [realism.bone_length_deviation(motions, initial), realism.share_outside_limits(motions, limits),
+            realism.foot_skating(motions, clips.NATIVE_FPS)]
+
+
+def evaluate(windows, model, neighbours, samples=50, seed=0, methods=METHODS, diverse_sampler=None,
+             progress=print):
+    """{method: {k: {metric: value}}} for windows (N, 1 + T, 17, 3), and the ground truth's realism."""
+    generator = torch.Generator().manual_seed(seed)
+    limits = realism.load_angle_limits()
+    groups = metrics.pseudo_truth_groups(metrics.to_protocol(windows[:, 0]))
+    frames = windows.shape[1] - 1
+    methods = [m for m in methods if m != "sampler" or diverse_sampler is not None]
+    results = {method: {} for method in methods}
+    for k in range(len(masks.EVALUATION_ORDER) + 1):
+        mask = masks.evaluation_mask(k, frames)
+        for method in methods:
+            motions = generate(method, model, neighbours, windows, mask, samples, generator, diverse_sampler)
+            results[method][str(k)] = score(motions, windows, mask, groups, limits)
+        progress(f"k={k} done")
+    truth = dict(zip(REALISM, realism_figures(windows[:, None, 1:], windows, limits)))
+    return results, {name: round(float(value), 4) for name, value in truth.items()}
+
+
+def format_table(results, truth):
+    lines = [f"{'method':<18} {'k':>2} " + " ".join(f"{m:>8}" for m in METRICS)]
+    for method, by_k in results.items():
+        for k, row in by_k.items():
+            cells = " ".join(f"{'-' if row[m] is None else format(row[m], '.4f'):>8}" for m in METRICS)
+            lines.append(f"{method:<18} {k:>2} {cells}")
+    lines.append(f"{'ground_truth':<18} {'':>2} " + " ".join(
+        f"{format(truth[m], '.4f') if m in truth else '':>8}" for m in METRICS))
+    return "\n".join(lines)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="python -m model_runtime.evaluate", description=__doc__)
+    parser.add_argument("--data", nargs="+", help="BVH files or folders (default: the validation subjects)")
+    parser.add_argument("--samples", type=int, default=50, help="K samples per condition")
+    parser.add_argument("--stride", type=int, default=15, help="frames between window starts")
+    parser.add_argument("--weights", default=str(weights.MODEL_WEIGHTS))
+    parser.add_argument("--sampler", default=str(weights.SAMPLER_WEIGHTS))
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--json", help="write the results here as JSON")
+    args = parser.parse_args(argv)
+    started = time.time()
+    torch.manual_seed(args.seed)
+
+    model, _ = weights.load_model(args.weights)
+    all_clips, _ = dataset.load_clips([dataset.DEFAULT_DATA_ROOT])
+    train_clips, validation_clips = dataset.split_by_subject(all_clips, dataset.read_manifest())
+    if args.data:
+        eval_clips, errors = dataset.load_clips(args.data)
+        for error in errors:
+            print(f"skipped: {error}", file=sys.stderr)
+    else:
+        eval_clips = validation_clips
+    windows = dataset.windows(eval_clips, future=model.config.frames, stride=args.stride)
+    if not len(windows):
+        print("no clip is long enough for a window", file=sys.stderr)
+        return 1
+    neighbours = baselines.NearestNeighbour(dataset.windows(train_clips, future=model.config.frames, stride=5))
+    print(f"{len(windows)} windows from {len(eval_clips)} clips, K = {args.samples}", flush=True)
+    diverse_sampler = weights.load_sampler(args.sampler)[0] if Path(args.sampler).exists() else None
+    if diverse_sampler is None:
+        print(f"no sampler weights at {args.sampler}: method 'sampler' skipped", file=sys.stderr)
+    results, truth = evaluate(windows, model, neighbours, args.samples, args.seed,
+                              diverse_sampler=diverse_sampler, progress=lambda line: print(line, flush=True))
+    seconds = time.time() - started
+    print(format_table(results, truth))
+    print(f"{len(windows)} windows in {seconds:.1f} s")
+    if args.json:
+        with open(args.json, "w") as handle:
+            json.dump({"methods": results, "ground_truth": truth, "windows": len(windows), "samples": args.samples,
+                       "seconds": round(seconds, 1)}, handle, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,164 @@
+"""TrajeVAE: motion as pose completion, a transformer CVAE with DCT latents and a learnable prior.
+
+Inputs (all in the window frame of ``data.dataset.windows``: metres, Z up,
+initial root at the ground-plane origin):
+
+- initial pose x0 (B, 17, 3)
+- future poses X (B, T, 17, 3) (training only)
+- known-joint mask M (B, T, 17), 1 where a joint's position is given on a
+  frame (a drawn curve, a key, an end pose). Trajectories are X * M.
+
+Prior p(z | X*M, M, x0) and posterior q(z | X*(1-M), 1-M, x0) share the frame
+encoder and the first transformers (the paper's design, with the mask given as
+input because a zero coordinate is ambiguous). Latents are the first
+``dct_keep`` DCT coefficients of the sequence codes. The decoder turns z back
+to time, sees the trajectories and the initial pose, and predicts per-frame
+offsets summed from x0. Native rate: 30 fps; T = 60 (2 s).
+"""
+
+import math
+from dataclasses import asdict, dataclass
+
+import torch
+from torch import nn
+
+from .dct import dct_matrix
+from .skeleton import NUM_JOINTS
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    frames: int = 60
+    width: int = 128
+    latent: int = 32
+    dct_keep: int = 20
+    heads: int = 4
+    feedforward: int = 256
+    frame_layers: int = 2
+    coefficient_layers: int = 1
+    branch_layers: int = 1
+    decoder_layers: int = 2
+    dropout: float = 0.1
+
+    def to_dict(self):
+        return asdict(self)
+
+
+def _mlp(inputs, width, outputs, final_norm=True):
+    layers = [nn.Linear(inputs, width), nn.LayerNorm(width), nn.LeakyReLU(0.1), nn.Linear(width, outputs)]
+    if final_norm:
+        layers += [nn.LayerNorm(outputs), nn.LeakyReLU(0.1)]
+    return nn.Sequential(*layers)
+
+
+def _transformer(config, layers):
+    layer = nn.TransformerEncoderLayer(config.width, config.heads, config.feedforward, config.dropout,
+                                       batch_first=True, norm_first=True)
+    return nn.TransformerEncoder(layer, layers, enable_nested_tensor=False)
+
+
+def _sinusoids(length, width):
+    position = torch.arange(length, dtype=torch.float32)[:, None]
+    rate = torch.exp(torch.arange(0, width, 2, dtype=torch.float32) * (-math.log(10000.0) / width))
+    table = torch.zeros(length, width)
+    table[:, 0::2] = torch.sin(position * rate)
+    table[:, 1::2] = torch.cos(position * rate)
+    return table
+
+
+class TrajeVAE(nn.Module):
+    def __init__(self, config=ModelConfig()):
+        super().__init__()
+        self.config = config
+        half = config.width // 2
+        coords = NUM_JOINTS * 3
+        self.frame_encoder = _mlp(coords + NUM_JOINTS, half, half)
+        self.pose_encoder = _mlp(coords, half, half)
+        self.frame_transformer = _transformer(config, config.frame_layers)
+        self.coefficient_transformer = _transformer(config, config.coefficient_layers)
+        self.prior_transformer = _transformer(config, config.branch_layers)
+        self.posterior_transformer = _transformer(config, config.branch_layers)
+        self.prior_head = nn.Linear(config.width, 2 * config.latent)
+        self.posterior_head = nn.Linear(config.width, 2 * config.latent)
+        self.decoder_input = _mlp(config.latent + half + half, config.width, config.width, final_norm=False)
+        self.decoder_transformer = _transformer(config, config.decoder_layers)
+        self.decoder_output = nn.Sequential(nn.Linear(config.width, config.width), nn.LeakyReLU(0.1),
+                                            nn.Linear(config.width, coords))
+        for layer in (self.decoder_output[-1], self.prior_head, self.posterior_head):
+            nn.init.zeros_(layer.weight)  # start from a still pose and KL = 0
+            nn.init.zeros_(layer.bias)
+        dct = torch.tensor(dct_matrix(config.frames)[: config.dct_keep], dtype=torch.float32)
+        self.register_buffer("dct", dct, persistent=False)  # (K, T)
+        self.register_buffer("time_code", _sinusoids(config.frames, config.width), persistent=False)
+        self.register_buffer("coefficient_code", _sinusoids(config.dct_keep, config.width), persistent=False)
+
+    def _frame_codes(self, values, mask):
+        """Per-frame codes (B, T, W/2) of masked positions (B, T, J, 3) and their mask (B, T, J)."""
+        flat = (values * mask[..., None]).flatten(2)
+        return self.frame_encoder(torch.cat([flat, mask], dim=-1))
+
+    def _distribution(self, frame_codes, pose_code, branch, head):
+        """Mean and log-variance (B, K, latent) of z from per-frame codes."""
+        tokens = torch.cat([frame_codes, pose_code[:, None].expand_as(frame_codes)], dim=-1)
+        tokens = self.frame_transformer(tokens + self.time_code)
+        coefficients = torch.einsum("kt,btw->bkw", self.dct, tokens)
+        coefficients = self.coefficient_transformer(coefficients + self.coefficient_code)
+        mean, log_var = head(branch(coefficients)).chunk(2, dim=-1)
+        return mean, log_var.clamp(-10.0, 10.0)
+
+    def prior(self, initial, trajectories, mask):
+        """p(z | trajectories, mask, initial pose): (mean, log_var), each (B, K, latent)."""
+        pose_code = self.pose_encoder(initial.flatten(1))
+        condition = self._frame_codes(trajectories, mask)
+        return (*self._distribution(condition, pose_code, self.prior_transformer, self.prior_head),
+                condition, pose_code)
+
+    def posterior(self, initial, future, mask, pose_code):
+        """q(z | future poses with the known joints hidden): (mean, log_var)."""
+        codes = self._frame_codes(future, 1.0 - mask)
+        return self._distribution(codes, pose_code, self.posterior_transformer, self.posterior_head)
+
+    def decode(self, z, initial, condition, pose_code):
+        """Poses (B, T, J, 3) from latents (B, K, latent) and the encoded condition."""
+        in_time = torch.einsum("kt,bkl->btl", self.dct, z)
+        frames = torch.cat([in_time, condition, pose_code[:, None].expand(-1, in_time.shape[1], -1)], dim=-1)
+        hidden = self.decoder_transformer(self.decoder_input(frames) + self.time_code)
+        offsets = self.decoder_output(hidden).view(*hidden.shape[:2], NUM_JOINTS, 3)
+        return initial[:, None] + torch.cumsum(offsets, dim=1)
+
+    def forward(self, initial, future, mask):
+        """Training pass: (reconstruction (B, T, J, 3), prior (mean, log_var), posterior (mean, log_var))."""
+        trajectories = future * mask[..., None]
+        prior_mean, prior_log_var, condition, pose_code = self.prior(initial, trajectories, mask)
+        post_mean, post_log_var = self.posterior(initial, future, mask, pose_code)
+        z = post_mean + torch.randn_like(post_mean) * torch.exp(0.5 * post_log_var)
+        return (self.decode(z, initial, condition, pose_code),
+                (prior_mean, prior_log_var), (post_mean, post_log_var))
+
+    @torch.no_grad()
+    def sample(self, initial, trajectories, mask, count, scale=1.0, generator=None, use_mean=False):
+        """``count`` motions per condition: (B, count, T, J, 3).
+
+        z = prior mean + scale * sigma * eps; ``use_mean`` decodes the prior mean once per condition.
+        """
+        prior_mean, prior_log_var, condition, pose_code = self.prior(initial, trajectories, mask)
+        batch = initial.shape[0]
+        count = 1 if use_mean else count
+        repeat = lambda t: t.repeat_interleave(count, dim=0)
+        mean, std = repeat(prior_mean), repeat(torch.exp(0.5 * prior_log_var))
+        noise = torch.zeros_like(mean) if use_mean else torch.randn(
+            mean.shape, generator=generator, dtype=mean.dtype)
+        z = mean + scale * std * noise
+        motion = self.decode(z, repeat(initial), repeat(condition), repeat(pose_code))
+        return motion.view(batch, count, *motion.shape[1:])
+
+
+def kl_divergence(post, prior):
+    """KL(q || p) of diagonal Gaussians given as (mean, log_var), summed over latents: (B,)."""
+    (mq, lq), (mp, lp) = post, prior
+    kl = 0.5 * (lp - lq + (torch.exp(lq) + (mq - mp) ** 2) / torch.exp(lp) - 1.0)
+    return kl.flatten(1).sum(-1)
+
+
+def parameter_count(model):
+    return sum(p.numel() for p in model.parameters())

@@ -1,0 +1,79 @@
+"""``python -m model_runtime.model_card EVALUATION.json``: write assets/MODEL_CARD.md from the
+shipped weights' own facts and an evaluation report, so the card never drifts from the model."""
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from . import weights
+from .data import clips, dataset
+from .evaluate import METRICS
+
+ATTRIBUTION = """- The data used in this project was obtained from mocap.cs.cmu.edu. The database was created
+  with funding from NSF EIA-0196217.
+- Motion capture data from The Ohio State University ACCAD Open Motion Project (CC BY 3.0)."""
+
+
+def render(meta, evaluation):
+    config, train = meta["config"], meta["train"]
+    rows = ["| method | k | " + " | ".join(METRICS) + " |", "|---|---|" + "---|" * len(METRICS)]
+    for method, by_k in evaluation["methods"].items():
+        for k, row in by_k.items():
+            rows.append(f"| {method} | {k} | " + " | ".join(
+                "-" if row[m] is None else f"{row[m]:.3f}" for m in METRICS) + " |")
+    return f"""# TrajeVAE model card
+
+Pose completion for motion from trajectories (Kania, Kowalski, Trzcinski), scaled
+for the CPU. File: `assets/trajevae.npz` (plain arrays and a JSON config; no pickled
+code). Reproduce with `python -m model_runtime.train`.
+
+## What it does
+Given an initial pose and any joints known on any frames (drawn curves, keys, an end
+pose, or nothing), it samples full-body motions of {config['frames']} frames at
+{clips.NATIVE_FPS} fps (2 s), metres, Z up, initial root at the ground-plane origin.
+
+## Data
+Real optical motion capture in ../shared/mocap (CMU and ACCAD), 17 canonical joints.
+Validation subjects, never trained on: {', '.join(meta['validation_subjects'])}.
+Model selection used the validation subjects only (prior-mean joint error over the
+evaluation masks k = 0..4).
+
+{ATTRIBUTION}
+
+## Configuration
+{json.dumps(config, indent=1)}
+
+Parameters: {meta['parameters']:,}. Training: {train['steps']} steps planned, batch
+{train['batch']}, Adam (lr {train['learning_rate']}, warm-up then cosine), beta
+{train['beta']}, bone-length weight {train['bone_weight']}, random turns about Z and
+mirroring, seed {train['seed']}; masks mix the paper's Bernoulli trajectories
+(p = 0.85 masked), the evaluation order, sparse keys, end poses and partial curves.
+Best checkpoint at step {meta['step']} after {meta['training_minutes']:.0f} minutes on 2 CPU
+cores; validation prior-mean joint error {meta['validation_error_m']:.4f} m.
+
+## Evaluation
+{evaluation['windows']} validation windows, K = {evaluation.get('samples', 50)} samples,
+DLow protocol (metres; APD diversity, ADE/FDE best of K, MMADE/MMFDE over pseudo
+ground truths), traj_err = mean distance of conditioned joints to their trajectories.
+k = number of trajectories given, in the order RFoot, LFoot, RWrist, LWrist.
+Run in {evaluation['seconds']:.0f} s with `python -m model_runtime.evaluate`.
+
+{chr(10).join(rows)}
+"""
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="python -m model_runtime.model_card")
+    parser.add_argument("evaluation", help="JSON written by model_runtime.evaluate --json")
+    parser.add_argument("--out", default=str(weights.ASSETS / "MODEL_CARD.md"))
+    args = parser.parse_args(argv)
+    _, meta = weights.load_model()
+    evaluation = json.loads(Path(args.evaluation).read_text())
+    Path(args.out).write_text(render(meta, evaluation))
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

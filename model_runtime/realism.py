@@ -1,0 +1,113 @@
+"""Realism measures and losses (GSPS): joint-angle limits from data, rigid bone lengths, foot skating.
+
+Angles are cosines between body-part directions and plane normals, so they
+need no rig-specific joint frames. Valid ranges are the 0.1 to 99.9
+percentiles over training poses (``fit_angle_limits``), which ignores a few
+capture glitches; the shipped ranges live in assets/angle_limits.json.
+"""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from .skeleton import JOINT_INDEX, PARENTS, RIGID_BONE_JOINTS, indices
+
+ANGLE_LIMITS = Path(__file__).resolve().parents[1] / "assets" / "angle_limits.json"
+ANGLE_NAMES = (
+    "spine_vs_hips", "thorax_twist", "head_vs_neck", "neck_vs_spine",
+    "left_thigh_forward", "right_thigh_forward", "left_thigh_sideways", "right_thigh_sideways",
+    "left_knee", "right_knee", "left_knee_hinge", "right_knee_hinge",
+    "left_upper_arm_forward", "right_upper_arm_forward", "left_elbow", "right_elbow",
+)
+
+
+def _unit(v):
+    return v / torch.linalg.norm(v, dim=-1, keepdim=True).clamp_min(1e-8)
+
+
+def _cos(a, b):
+    return (_unit(a) * _unit(b)).sum(-1)
+
+
+def joint_angle_cosines(poses):
+    """Cosines of the ``ANGLE_NAMES`` angles for poses (..., 17, 3): (..., 16)."""
+    p = {name: poses[..., i, :] for name, i in JOINT_INDEX.items()}
+    spine, hips = p["Thorax"] - p["Hip"], p["LHip"] - p["RHip"]
+    forward = _unit(torch.cross(hips, spine, dim=-1))  # hip plane normal, facing
+    shoulders = p["LShoulder"] - p["RShoulder"]
+    cosines = [_cos(spine, hips), _cos(shoulders, hips), _cos(p["Head"] - p["Neck"], p["Neck"] - p["Thorax"]),
+               _cos(p["Neck"] - p["Thorax"], spine)]
+    for side in "LR":
+        cosines.append(_cos(p[side + "Knee"] - p[side + "Hip"], forward))
+    for side in "LR":
+        cosines.append(_cos(p[side + "Knee"] - p[side + "Hip"], hips))
+    for side in "LR":
+        cosines.append(_cos(p[side + "Foot"] - p[side + "Knee"], p[side + "Knee"] - p[side + "Hip"]))
+    for side in "LR":  # a knee bends one way only: its hinge axis stays along the hip line
+        thigh, shin = p[side + "Knee"] - p[side + "Hip"], p[side + "Foot"] - p[side + "Knee"]
+        cosines.append(_cos(torch.cross(thigh, shin, dim=-1), hips))
+    for side in "LR":
+        cosines.append(_cos(p[side + "Elbow"] - p[side + "Shoulder"], forward))
+    for side in "LR":
+        cosines.append(_cos(p[side + "Wrist"] - p[side + "Elbow"], p[side + "Elbow"] - p[side + "Shoulder"]))
+    return torch.stack(cosines, dim=-1)
+
+
+def fit_angle_limits(poses, low=0.1, high=99.9):
+    """{"names", "low", "high"} valid cosine ranges from training poses (N, 17, 3)."""
+    cosines = joint_angle_cosines(torch.as_tensor(poses, dtype=torch.float64)).numpy()
+    finite = cosines[np.all(np.isfinite(cosines), axis=1)]
+    return {"names": list(ANGLE_NAMES), "low": np.percentile(finite, low, axis=0).tolist(),
+            "high": np.percentile(finite, high, axis=0).tolist()}
+
+
+def load_angle_limits(path=ANGLE_LIMITS):
+    """(low, high) tensors (16,) of the shipped ranges."""
+    limits = json.loads(Path(path).read_text())
+    assert limits["names"] == list(ANGLE_NAMES), "angle limits were fitted for other angles"
+    return torch.tensor(limits["low"]), torch.tensor(limits["high"])
+
+
+def angle_excess(poses, limits):
+    """How far each angle's cosine lies outside its range, 0 inside: (..., 16)."""
+    low, high = limits
+    cosines = joint_angle_cosines(poses)
+    return torch.relu(low.to(cosines) - cosines) + torch.relu(cosines - high.to(cosines))
+
+
+def angle_limit_loss(poses, limits):
+    """GSPS angle loss: squared distance outside the valid ranges, summed over angles (...,)."""
+    return (angle_excess(poses, limits) ** 2).sum(-1)
+
+
+def rigid_bone_lengths(poses):
+    """Lengths (..., 11) of the bones rigid in every rig."""
+    child = indices(RIGID_BONE_JOINTS)
+    parent = [PARENTS[c] for c in child]
+    return torch.linalg.norm(poses[..., child, :] - poses[..., parent, :], dim=-1)
+
+
+def share_outside_limits(motion, limits, tolerance=1e-3):
+    """Share of frames (motion (..., T, 17, 3)) with any angle outside its range."""
+    excess = angle_excess(torch.as_tensor(motion, dtype=torch.float64), limits)
+    return float((excess.amax(-1) > tolerance).double().mean())
+
+
+def bone_length_deviation(motion, initial):
+    """Mean absolute deviation (m) of rigid bone lengths in motion (..., T, 17, 3) from initial (..., 17, 3)."""
+    motion, initial = torch.as_tensor(motion, dtype=torch.float64), torch.as_tensor(initial, dtype=torch.float64)
+    return float((rigid_bone_lengths(motion) - rigid_bone_lengths(initial)[..., None, :]).abs().mean())
+
+
+def foot_skating(motion, fps, contact_m=0.05):
+    """Mean horizontal ankle speed (m/s) on frames where the ankle is within ``contact_m``
+    of its lowest height in the motion (ankles sit above the sole, so the floor is the
+    motion's own lowest ankle height). motion (..., T, 17, 3)."""
+    feet = np.asarray(motion, np.float64)[..., indices(("RFoot", "LFoot")), :]  # (..., T, 2, 3)
+    speed = np.linalg.norm(np.diff(feet[..., :2], axis=-3), axis=-1) * fps  # (..., T-1, 2)
+    height = feet[..., 1:, :, 2]
+    lowest = feet[..., :, :, 2].min(axis=-2, keepdims=True)
+    contact = height < lowest + contact_m
+    return float(speed[contact].mean()) if contact.any() else 0.0

@@ -1,0 +1,75 @@
+"""Diverse sampling from an auxiliary space (Dang et al.) over the frozen TrajeVAE.
+
+From the condition (the learnable prior's mean and log-variance, so it sees
+the initial pose and any trajectories) a network makes M basis vectors;
+Gumbel-softmax weights combine them into points; a second network maps each
+point to a Gaussian in the prior's standardised latent space:
+z = mu_prior + sigma_prior * (mean_k + sigma_k * eps). The frozen decoder
+turns each z into a motion. Any number of samples at inference.
+"""
+
+from dataclasses import asdict, dataclass
+
+import torch
+from torch import nn
+
+
+@dataclass(frozen=True)
+class SamplerConfig:
+    bases: int = 40
+    base_width: int = 128
+    hidden: int = 256
+    head_width: int = 64
+    temperature: float = 0.85
+    latent_size: int = 640  # TrajeVAE dct_keep x latent
+
+    def to_dict(self):
+        return asdict(self)
+
+
+def _head(config):
+    return nn.Sequential(nn.Linear(config.base_width, config.head_width), nn.BatchNorm1d(config.head_width),
+                         nn.Tanh(), nn.Linear(config.head_width, config.latent_size))
+
+
+class DiverseSampler(nn.Module):
+    def __init__(self, config=SamplerConfig()):
+        super().__init__()
+        self.config = config
+        self.condition = nn.Sequential(nn.Linear(2 * config.latent_size, config.hidden), nn.LeakyReLU(0.1),
+                                       nn.Linear(config.hidden, config.hidden), nn.LeakyReLU(0.1))
+        self.bases = nn.Sequential(nn.Linear(config.hidden, config.bases * config.base_width),
+                                   nn.BatchNorm1d(config.bases * config.base_width), nn.Tanh())
+        self.mean_head = _head(config)
+        self.log_var_head = _head(config)
+
+    def forward(self, prior_mean, prior_log_var, count, generator=None):
+        """Standardised Gaussians for ``count`` samples per condition: (mean, log_var), each (B, count, latent_size)."""
+        batch = prior_mean.shape[0]
+        features = self.condition(torch.cat([prior_mean.flatten(1), prior_log_var.flatten(1)], dim=-1))
+        bases = self.bases(features).view(batch, self.config.bases, self.config.base_width)
+        uniform = torch.rand((batch, count, self.config.bases), generator=generator).clamp(1e-9, 1 - 1e-9)
+        gumbel = -torch.log(-torch.log(uniform))
+        weights = torch.softmax(gumbel / self.config.temperature, dim=-1)  # constant (uniform) logits
+        points = (weights @ bases).flatten(0, 1)
+        mean = self.mean_head(points).view(batch, count, -1)
+        log_var = self.log_var_head(points).view(batch, count, -1).clamp(-10.0, 10.0)
+        return mean, log_var
+
+    def latents(self, prior_mean, prior_log_var, count, generator=None):
+        """z (B * count, K, latent) for the TrajeVAE decoder, and the standardised (mean, log_var)."""
+        mean, log_var = self(prior_mean, prior_log_var, count, generator)
+        noise = torch.randn(mean.shape, generator=generator, dtype=mean.dtype)
+        standard = mean + torch.exp(0.5 * log_var) * noise
+        shape = prior_mean.shape
+        z = (prior_mean[:, None] + torch.exp(0.5 * prior_log_var)[:, None] * standard.view(shape[0], count, *shape[1:]))
+        return z.flatten(0, 1), (mean, log_var)
+
+
+def sample_motions(model, sampler, initial, trajectories, mask, count, generator=None):
+    """``count`` diverse motions per condition with the frozen model: (B, count, T, J, 3)."""
+    prior_mean, prior_log_var, condition, pose_code = model.prior(initial, trajectories, mask)
+    z, _ = sampler.latents(prior_mean, prior_log_var, count, generator)
+    repeat = lambda t: t.repeat_interleave(count, dim=0)
+    motion = model.decode(z, repeat(initial), repeat(condition), repeat(pose_code))
+    return motion.view(initial.shape[0], count, *motion.shape[1:])

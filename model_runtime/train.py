@@ -1,0 +1,177 @@
+"""``python -m model_runtime.train``: train TrajeVAE on the shared motion capture, on the CPU.
+
+Fixed seed, random turns about Z and mirroring, checkpoints with resume, and
+model selection on the validation subjects only (prior-mean error over the
+evaluation masks k = 0..4). The best model is written to assets/trajevae.npz.
+"""
+
+import argparse
+import math
+import sys
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from . import augment, checkpoints, masks, weights
+from .data import dataset
+from .model import ModelConfig, TrajeVAE, kl_divergence, parameter_count
+from .realism import rigid_bone_lengths
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    steps: int = 8000
+    batch: int = 64
+    learning_rate: float = 4e-4
+    warmup: int = 300
+    beta: float = 0.01  # KL weight, the paper's
+    bone_weight: float = 1.0  # rigid bones keep the initial pose's lengths
+    mirror_probability: float = 0.5
+    seed: int = 0
+    validate_every: int = 500
+    checkpoint_every: int = 250
+
+
+class WindowSampler:
+    """Random training windows (B, 1 + T, 17, 3) drawn from whole clips, any start frame."""
+
+    def __init__(self, clips, frames):
+        self.length = frames + 1
+        kept = [c.positions for c in clips if c.frames >= self.length]
+        self.motion = np.concatenate(kept)
+        ends = np.cumsum([len(p) for p in kept])
+        self.starts = np.concatenate([np.arange(end - len(p), end - self.length + 1)
+                                      for p, end in zip(kept, ends)])
+
+    def __len__(self):
+        return len(self.starts)
+
+    def sample(self, batch, rng):
+        starts = rng.choice(self.starts, size=batch)
+        return dataset.normalise(self.motion[starts[:, None] + np.arange(self.length)])
+
+
+def validation_set(clips, frames, stride=10):
+    """Fixed validation windows (N, 1 + T, 17, 3) and masks (N, T, 17) cycling k = 0..4."""
+    windows = dataset.windows(clips, future=frames, stride=stride)
+    cycle = len(masks.EVALUATION_ORDER) + 1
+    mask = np.stack([masks.evaluation_mask(i % cycle, frames) for i in range(len(windows))])
+    return windows, mask
+
+
+def losses(model, initial, future, mask, config):
+    """Loss terms per the paper (summed squared error and KL per sample) plus bone lengths."""
+    reconstruction, prior, posterior = model(initial, future, mask)
+    squared = ((reconstruction - future) ** 2).sum(-1)
+    known = (squared * mask).flatten(1).sum(-1).mean()
+    unknown = (squared * (1 - mask)).flatten(1).sum(-1).mean()
+    kl = kl_divergence(posterior, prior).mean()
+    bones = ((rigid_bone_lengths(reconstruction) - rigid_bone_lengths(initial)[:, None]) ** 2).flatten(1).sum(-1).mean()
+    total = known + unknown + config.beta * kl + config.bone_weight * bones
+    return total, {"known": known.item(), "unknown": unknown.item(), "kl": kl.item(), "bones": bones.item()}
+
+
+@torch.no_grad()
+def validate(model, windows, mask, batch=256):
+    """Mean joint position error (metres) of the prior mean, over validation windows and masks."""
+    model.eval()
+    errors = []
+    for start in range(0, len(windows), batch):
+        motion = torch.from_numpy(windows[start:start + batch])
+        known = torch.from_numpy(mask[start:start + batch])
+        initial, future = motion[:, 0], motion[:, 1:]
+        prediction = model.sample(initial, future * known[..., None], known, 1, use_mean=True)[:, 0]
+        errors.append(torch.linalg.norm(prediction - future, dim=-1).mean(dim=(1, 2)))
+    model.train()
+    return torch.cat(errors).mean().item()
+
+
+def learning_rate(step, config):
+    """Linear warm-up, then cosine decay to 2% of the peak."""
+    if step < config.warmup:
+        return config.learning_rate * (step + 1) / config.warmup
+    progress = (step - config.warmup) / max(1, config.steps - config.warmup)
+    return config.learning_rate * (0.02 + 0.98 * 0.5 * (1 + math.cos(math.pi * min(progress, 1.0))))
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="python -m model_runtime.train", description=__doc__)
+    parser.add_argument("--data", nargs="+", default=[str(dataset.DEFAULT_DATA_ROOT)])
+    parser.add_argument("--steps", type=int, default=TrainConfig.steps)
+    parser.add_argument("--batch", type=int, default=TrainConfig.batch)
+    parser.add_argument("--seed", type=int, default=TrainConfig.seed)
+    parser.add_argument("--out", default=str(weights.MODEL_WEIGHTS), help="where the best model goes")
+    parser.add_argument("--checkpoint", default=str(checkpoints.default_path("trajevae")))
+    parser.add_argument("--fresh", action="store_true", help="ignore an existing checkpoint")
+    parser.add_argument("--threads", type=int, default=0, help="torch threads (0: all cores)")
+    args = parser.parse_args(argv)
+    config = TrainConfig(steps=args.steps, batch=args.batch, seed=args.seed)
+    model_config = ModelConfig()
+    if args.threads:
+        torch.set_num_threads(args.threads)
+
+    clips, errors = dataset.load_clips(args.data)
+    for error in errors:
+        print(f"skipped: {error}", file=sys.stderr)
+    manifest = dataset.read_manifest()
+    train_clips, validation_clips = dataset.split_by_subject(clips, manifest)
+    sampler = WindowSampler(train_clips, model_config.frames)
+    val_windows, val_mask = validation_set(validation_clips, model_config.frames)
+    print(f"training windows {len(sampler)} from {len(train_clips)} clips; "
+          f"validation windows {len(val_windows)} from {len(validation_clips)} clips "
+          f"({', '.join(dataset.VALIDATION_SUBJECTS)})", flush=True)
+
+    torch.manual_seed(config.seed)
+    rng = np.random.default_rng(config.seed)
+    model = TrajeVAE(model_config)
+    optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate, betas=(0.9, 0.99))
+    print(f"TrajeVAE {parameter_count(model):,} parameters; {model_config}", flush=True)
+    run = checkpoints.RunState(args.checkpoint, model, optimizer, rng)
+    if not args.fresh and run.resume():
+        print(f"resumed from {args.checkpoint} at step {run.step}", flush=True)
+
+    model.train()
+    started, running = time.time() - run.elapsed, {}
+    while run.step < config.steps:
+        motion = sampler.sample(config.batch, rng)
+        flip = rng.random(config.batch) < config.mirror_probability
+        motion[flip] = augment.mirror(motion[flip])
+        motion = augment.rotate_about_z(motion, rng.uniform(0, 2 * np.pi, config.batch)).astype(np.float32)
+        mask = masks.sample_training_masks(config.batch, model_config.frames, rng)
+        motion, mask = torch.from_numpy(motion), torch.from_numpy(mask)
+        for group in optimizer.param_groups:
+            group["lr"] = learning_rate(run.step, config)
+        total, parts = losses(model, motion[:, 0], motion[:, 1:], mask, config)
+        optimizer.zero_grad()
+        total.backward()
+        torch.nn.utils.clip_grad_norm_(model.parameters(), 100.0)
+        optimizer.step()
+        run.step += 1
+        checkpoints.smooth(running, parts)
+        run.elapsed = time.time() - started
+        if run.step % 50 == 0 or run.step == config.steps:
+            print(checkpoints.progress_line(run.step, config.steps, running, run.elapsed), flush=True)
+        if run.step % config.validate_every == 0 or run.step == config.steps:
+            error = validate(model, val_windows, val_mask)
+            run.history.append({"step": run.step, "validation_error_m": error, "minutes": run.elapsed / 60})
+            marker = ""
+            if error < run.best:
+                run.best, marker = error, " (best, saved)"
+                weights.save(args.out, model, model_config, {
+                    "train": asdict(config), "step": run.step, "validation_error_m": error,
+                    "training_minutes": run.elapsed / 60,
+                    "validation_subjects": list(dataset.VALIDATION_SUBJECTS),
+                    "parameters": parameter_count(model)})
+            print(f"validation: prior-mean joint error {error:.4f} m{marker}", flush=True)
+        if run.step % config.checkpoint_every == 0 or run.step == config.steps:
+            run.save()
+    print(f"done: {run.step} steps in {run.elapsed / 60:.1f} min, "
+          f"best validation error {run.best:.4f} m -> {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

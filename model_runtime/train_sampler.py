@@ -1,0 +1,173 @@
+"""``python -m model_runtime.train_sampler``: train the diverse sampler over the frozen TrajeVAE.
+
+Losses: hinge diversity between the K samples of a condition, best-of-K
+accuracy, KL of the standardised Gaussians to N(0, I), and the GSPS realism
+terms (joint-angle limits fitted on the training subjects, rigid bone
+lengths) so diversity never comes from broken poses. Half the conditions have
+no trajectories (the sampler's main use), half have training masks. Model
+selection on the validation subjects; weights to assets/sampler.npz.
+"""
+
+import argparse
+import json
+import sys
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from . import augment, checkpoints, masks, metrics, realism, weights
+from .data import dataset
+from .model import parameter_count
+from .sampler import DiverseSampler, SamplerConfig
+from .train import WindowSampler, learning_rate
+
+@dataclass(frozen=True)
+class SamplerTrainConfig:
+    steps: int = 5000
+    batch: int = 16
+    samples: int = 10  # K per condition in training; any K at inference
+    learning_rate: float = 1e-3
+    warmup: int = 200
+    diversity_margin: float = 2.0  # hinge threshold eta, in multiples of plain sampling's APD
+    diversity_weight: float = 1.0
+    accuracy_weight: float = 100.0
+    kl_weight: float = 1.0
+    angle_weight: float = 100.0
+    bone_weight: float = 100.0
+    empty_mask_share: float = 0.5
+    seed: int = 0
+    validate_every: int = 250
+    checkpoint_every: int = 250
+
+
+def pairwise_distances(motion):
+    """Distances between the K samples of each condition in the DLow protocol: (B, K, K)."""
+    relative = (motion[..., 1:, :] - motion[..., :1, :]).flatten(2)
+    return torch.cdist(relative, relative)
+
+
+def sampler_losses(model, sampler, initial, future, mask, limits, margin, config, generator=None):
+    """Weighted total and its parts for one batch."""
+    count = config.samples
+    prior_mean, prior_log_var, condition, pose_code = model.prior(initial, future * mask[..., None], mask)
+    z, (mean, log_var) = sampler.latents(prior_mean, prior_log_var, count, generator)
+    repeat = lambda t: t.repeat_interleave(count, dim=0)
+    motion = model.decode(z, repeat(initial), repeat(condition), repeat(pose_code))
+    motion = motion.view(initial.shape[0], count, *motion.shape[1:])
+    distances = pairwise_distances(motion)
+    upper = torch.triu(torch.ones(count, count, dtype=torch.bool), diagonal=1)
+    diversity = torch.relu(margin - distances[:, upper]).mean() / margin
+    accuracy = ((motion - future[:, None]) ** 2).sum(-1).mean(dim=(2, 3)).min(dim=1).values.mean()
+    kl = 0.5 * (mean ** 2 + torch.exp(log_var) - log_var - 1.0).mean()
+    angles = realism.angle_limit_loss(motion, limits).mean()
+    bones = ((realism.rigid_bone_lengths(motion) - realism.rigid_bone_lengths(initial)[:, None, None]) ** 2).mean()
+    total = (config.diversity_weight * diversity + config.accuracy_weight * accuracy + config.kl_weight * kl
+             + config.angle_weight * angles + config.bone_weight * bones)
+    parts = {"diversity": diversity.item(), "accuracy": accuracy.item(), "kl": kl.item(),
+             "angles": angles.item(), "bones": bones.item(), "min_dist": distances[:, upper].min().item()}
+    return total, parts
+
+
+@torch.no_grad()
+def plain_apd(model, windows, count):
+    """Mean APD (DLow protocol) of plain prior sampling with no trajectories over windows (N, 1 + T, 17, 3)."""
+    initial, future = torch.from_numpy(windows[:, 0]), torch.from_numpy(windows[:, 1:])
+    empty = torch.zeros(future.shape[:-1])
+    motion = model.sample(initial, future * 0, empty, count, generator=torch.Generator().manual_seed(0))
+    return float(np.mean([metrics.apd(metrics.to_protocol(m)) for m in motion.numpy()]))
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="python -m model_runtime.train_sampler", description=__doc__)
+    parser.add_argument("--steps", type=int, default=SamplerTrainConfig.steps)
+    parser.add_argument("--batch", type=int, default=SamplerTrainConfig.batch)
+    parser.add_argument("--seed", type=int, default=SamplerTrainConfig.seed)
+    parser.add_argument("--model", default=str(weights.MODEL_WEIGHTS))
+    parser.add_argument("--out", default=str(weights.SAMPLER_WEIGHTS))
+    parser.add_argument("--limits", default=str(realism.ANGLE_LIMITS), help="fitted here if missing")
+    parser.add_argument("--checkpoint", default=str(checkpoints.default_path("sampler")))
+    parser.add_argument("--fresh", action="store_true", help="ignore an existing checkpoint")
+    args = parser.parse_args(argv)
+    config = SamplerTrainConfig(steps=args.steps, batch=args.batch, seed=args.seed)
+
+    model, _ = weights.load_model(args.model)
+    for parameter in model.parameters():
+        parameter.requires_grad_(False)
+    clips, _ = dataset.load_clips([dataset.DEFAULT_DATA_ROOT])
+    train_clips, validation_clips = dataset.split_by_subject(clips, dataset.read_manifest())
+    if not Path(args.limits).exists():
+        poses = np.concatenate([c.positions for c in train_clips])
+        Path(args.limits).write_text(json.dumps(realism.fit_angle_limits(poses), indent=1))
+        print(f"fitted joint-angle limits on {len(poses)} training poses -> {args.limits}")
+    limits = realism.load_angle_limits(args.limits)
+    frames = model.config.frames
+    windows = WindowSampler(train_clips, frames)
+    validation = dataset.windows(validation_clips, future=frames, stride=30)
+    margin = config.diversity_margin * plain_apd(model, validation[:64], config.samples)
+    print(f"hinge margin eta = {margin:.3f} m ({config.diversity_margin} x plain APD); "
+          f"{len(validation)} validation windows", flush=True)
+
+    torch.manual_seed(config.seed)
+    rng = np.random.default_rng(config.seed)
+    sampler_config = SamplerConfig(latent_size=model.config.dct_keep * model.config.latent)
+    sampler = DiverseSampler(sampler_config)
+    optimizer = torch.optim.Adam(sampler.parameters(), lr=config.learning_rate)
+    print(f"sampler {parameter_count(sampler):,} parameters", flush=True)
+    run = checkpoints.RunState(args.checkpoint, sampler, optimizer, rng)
+    if not args.fresh and run.resume():
+        print(f"resumed from {args.checkpoint} at step {run.step}", flush=True)
+
+    def validation_loss():
+        sampler.eval()
+        generator = torch.Generator().manual_seed(1)
+        with torch.no_grad():
+            motion = torch.from_numpy(validation)
+            empty = torch.zeros(len(validation), frames, 17)
+            total, parts = sampler_losses(model, sampler, motion[:, 0], motion[:, 1:], empty, limits,
+                                          margin, config, generator)
+        sampler.train()
+        return total.item(), parts
+
+    started, running = time.time() - run.elapsed, {}
+    sampler.train()
+    while run.step < config.steps:
+        motion = windows.sample(config.batch, rng)
+        motion = augment.rotate_about_z(motion, rng.uniform(0, 2 * np.pi, config.batch)).astype(np.float32)
+        mask = masks.sample_training_masks(config.batch, frames, rng)
+        mask[rng.random(config.batch) < config.empty_mask_share] = 0.0
+        for group in optimizer.param_groups:
+            group["lr"] = learning_rate(run.step, config)
+        motion = torch.from_numpy(motion)
+        total, parts = sampler_losses(model, sampler, motion[:, 0], motion[:, 1:], torch.from_numpy(mask),
+                                      limits, margin, config)
+        optimizer.zero_grad()
+        total.backward()
+        optimizer.step()
+        run.step += 1
+        checkpoints.smooth(running, parts)
+        run.elapsed = time.time() - started
+        if run.step % 50 == 0 or run.step == config.steps:
+            print(checkpoints.progress_line(run.step, config.steps, running, run.elapsed), flush=True)
+        if run.step % config.validate_every == 0 or run.step == config.steps:
+            loss, parts = validation_loss()
+            run.history.append({"step": run.step, "validation_loss": loss, **parts})
+            marker = ""
+            if loss < run.best:
+                run.best, marker = loss, " (best, saved)"
+                weights.save(args.out, sampler, sampler_config, {
+                    "train": asdict(config), "step": run.step, "validation_loss": loss,
+                    "hinge_margin_m": margin, "training_minutes": run.elapsed / 60,
+                    "parameters": parameter_count(sampler)})
+            print(f"validation loss {loss:.4f} " + " ".join(f"{k} {v:.3f}" for k, v in parts.items()) + marker,
+                  flush=True)
+        if run.step % config.checkpoint_every == 0 or run.step == config.steps:
+            run.save()
+    print(f"done: {run.step} steps in {run.elapsed / 60:.1f} min -> {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

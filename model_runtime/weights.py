@@ -1,0 +1,43 @@
+"""Shipped weights as .npz: arrays plus the config as JSON. No pickled code is ever loaded."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import torch
+
+ASSETS = Path(__file__).resolve().parents[1] / "assets"
+MODEL_WEIGHTS = ASSETS / "trajevae.npz"
+SAMPLER_WEIGHTS = ASSETS / "sampler.npz"
+
+
+def save(path, module, config, extra=None):
+    """Write a module's parameters (float32) with its config and any extra JSON-able facts."""
+    arrays = {name: tensor.detach().cpu().numpy().astype(np.float32)
+              for name, tensor in module.state_dict().items()}
+    meta = {"config": config.to_dict(), **(extra or {})}
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    temporary = path.with_suffix(".tmp.npz")
+    np.savez_compressed(temporary, __meta__=np.array(json.dumps(meta)), **arrays)
+    temporary.replace(path)
+
+
+def load(path, module_class, config_class):
+    """(module in eval mode, meta dict) from a file written by ``save``."""
+    with np.load(path, allow_pickle=False) as stored:
+        meta = json.loads(str(stored["__meta__"]))
+        state = {name: torch.from_numpy(stored[name]) for name in stored.files if name != "__meta__"}
+    module = module_class(config_class(**meta["config"]))
+    module.load_state_dict(state)
+    return module.eval(), meta
+
+
+def load_model(path=MODEL_WEIGHTS):
+    from .model import ModelConfig, TrajeVAE
+    return load(path, TrajeVAE, ModelConfig)
+
+
+def load_sampler(path=SAMPLER_WEIGHTS):
+    from .sampler import DiverseSampler, SamplerConfig
+    return load(path, DiverseSampler, SamplerConfig)

@@ -1,0 +1,66 @@
+"""Metrics of the DLow protocol and the baselines, on small hand-made motions and real windows."""
+
+import numpy as np
+import pytest
+
+from model_runtime import baselines, masks, metrics
+from model_runtime.data import dataset
+from model_runtime.dct import dct_matrix
+
+
+def test_dct_is_orthonormal():
+    d = dct_matrix(60)
+    np.testing.assert_allclose(d @ d.T, np.eye(60), atol=1e-10)
+
+
+def test_apd_mpd_ade_fde_by_hand():
+    truth = np.zeros((4, 48))
+    near = np.full((4, 48), 0.1)
+    far = np.full((4, 48), 1.0)
+    samples = np.stack([near, far])
+    assert metrics.ade_fde(samples, truth) == pytest.approx((np.linalg.norm(near[0]),) * 2)
+    distance = np.linalg.norm((far - near).ravel())
+    assert np.isclose(metrics.apd(samples), distance)
+    assert metrics.mpd(np.stack([near, near, far])) == pytest.approx(0.0, abs=1e-6)
+    assert metrics.apd(samples[:1]) == 0.0
+
+
+def test_multimodal_averages_over_pseudo_truths():
+    rng = np.random.default_rng(1)
+    samples, truths = rng.normal(size=(6, 10, 48)), rng.normal(size=(3, 10, 48))
+    ade, fde = metrics.multimodal_ade_fde(samples, truths)
+    by_truth = [metrics.ade_fde(samples, t) for t in truths]
+    assert np.isclose(ade, np.mean([a for a, _ in by_truth]))
+    assert np.isclose(fde, np.mean([f for _, f in by_truth]))
+
+
+def test_protocol_is_root_relative():
+    motion = np.random.default_rng(2).normal(size=(5, 17, 3))
+    shifted = motion + np.array([3.0, -2.0, 1.0])
+    np.testing.assert_allclose(metrics.to_protocol(motion), metrics.to_protocol(shifted))
+    assert metrics.to_protocol(motion).shape == (5, 48)
+
+
+def test_training_masks_cover_every_family():
+    rng = np.random.default_rng(0)
+    batch = masks.sample_training_masks(400, 60, rng)
+    assert batch.shape == (400, 60, 17)
+    known_frames = batch.any(axis=2).sum(axis=1)
+    constant_in_time = np.all(batch == batch[:, :1], axis=(1, 2))
+    assert (known_frames == 0).any()  # nothing given
+    assert (constant_in_time & (known_frames == 60)).any()  # whole trajectories
+    assert (~constant_in_time).sum() > 50  # keys, end poses, partial curves
+    assert (batch[:, -1].all(axis=1) & ~batch[:, 0].all(axis=1)).any()  # end pose
+
+
+def test_baselines_pin_given_joints_and_match_their_own_data(all_clips):
+    windows = dataset.windows(all_clips[:3], future=60, stride=20)
+    mask = masks.evaluation_mask(2, 60)
+    window = windows[1]
+    trajectories = window[1:] * mask[..., None]
+    pinned = baselines.pinned_pose(window[0], trajectories, mask)
+    np.testing.assert_allclose(pinned[mask > 0], window[1:][mask > 0])
+    neighbours = baselines.NearestNeighbour(windows)
+    best = neighbours.query(window[0], trajectories, mask, count=3)
+    assert best.shape == (3, 60, 17, 3)
+    np.testing.assert_allclose(best[0], window[1:], atol=1e-4)  # a window finds itself first
