@@ -42,29 +42,30 @@ def _yaw(pose):
 class NearestNeighbour:
     """Motion matching: the training windows closest in initial pose and given trajectories.
 
-    Windows are stored turned to face +Y; a query is turned the same way,
-    matched on the squared distance of its initial pose plus its known joints
-    over time. The K best futures are shifted by the difference of initial
-    poses (so they start from the query's pose, as a motion-matching blend
-    would), turned back and pinned.
+    Windows are stored turned to face +Y; queries are turned the same way and
+    matched on the squared distance of the initial pose plus the known joints
+    over time (one matrix product for a whole batch of queries). The K best
+    futures are shifted by the difference of initial poses (so they start from
+    the query's pose, as a motion-matching blend would), turned back and
+    pinned.
     """
 
     def __init__(self, windows):
         """windows: (N, 1 + T, 17, 3) training windows in the window frame."""
         self.windows = augment.rotate_about_z(windows, -_yaw(windows[:, 0])).astype(np.float32)
-        self.initial = self.windows[:, 0].reshape(len(windows), -1)
+        self.features = self.windows.reshape(len(windows), -1)
+        self.squared = self.features ** 2
 
     def query(self, initial, trajectories, mask, count):
-        """The ``count`` best futures (count, T, 17, 3) for one condition."""
-        angle = _yaw(initial)
-        turn = lambda m: augment.rotate_about_z(m[None], np.array([-angle]))[0]
-        initial_turned, trajectories_turned = turn(initial), turn(trajectories)
-        cost = ((self.initial - initial_turned.reshape(-1)) ** 2).sum(axis=1)
-        frames, joints = np.nonzero(mask)
-        if len(frames):
-            given = self.windows[:, 1 + frames, joints]  # (N, known, 3)
-            cost = cost + ((given - trajectories_turned[frames, joints]) ** 2).sum(axis=(1, 2))
-        best = np.argsort(cost)[:count]
-        futures = self.windows[best, 1:] + (initial_turned - self.windows[best, 0])[:, None]
-        futures = augment.rotate_about_z(futures, np.full(len(best), angle))
-        return pin(futures, trajectories, mask)
+        """The ``count`` best futures (B, count, T, 17, 3) for conditions initial (B, 17, 3),
+        trajectories (B, T, 17, 3) sharing one mask (T, 17)."""
+        angles = _yaw(initial)
+        turned = augment.rotate_about_z(np.concatenate([initial[:, None], trajectories], axis=1), -angles)
+        weight = np.concatenate([np.ones((1, mask.shape[1])), mask])  # the initial pose always counts
+        weight = np.repeat(weight[..., None], 3, axis=-1).reshape(-1).astype(np.float32)
+        query = turned.reshape(len(turned), -1).astype(np.float32)
+        cost = (self.squared @ weight)[:, None] - 2.0 * self.features @ (query * weight).T  # (N, B), up to a constant
+        best = np.argsort(cost, axis=0)[:count].T  # (B, count)
+        futures = self.windows[best, 1:] + (turned[:, None, :1] - self.windows[best, :1])
+        futures = augment.rotate_about_z(futures, angles)
+        return pin(futures, trajectories[:, None], mask)

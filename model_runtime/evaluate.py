@@ -51,7 +51,8 @@ def generate(method, model, neighbours, windows, mask, samples, generator, diver
         return np.concatenate(out)
     if method == "pinned_pose":
         return np.stack([baselines.pinned_pose(i, t, mask)[None] for i, t in zip(initial, trajectories)])
-    return np.stack([neighbours.query(i, t, mask, samples) for i, t in zip(initial, trajectories)])
+    return np.concatenate([neighbours.query(initial[start:start + 64], trajectories[start:start + 64], mask, samples)
+                           for start in range(0, len(windows), 64)])
 
 
 def score(motions, windows, mask, groups, limits):

@@ -63,3 +63,54 @@ def slerp(q0, q1, t):
     w1 = np.where(close, t, np.sin(t * theta) / safe)
     out = w0 * q0 + w1 * q1
     return out / np.linalg.norm(out, axis=-1, keepdims=True)
+
+
+def from_matrix(matrix):
+    """Unit quaternions (..., 4) of rotation matrices (..., 3, 3), w >= 0."""
+    m = matrix
+    trace = m[..., 0, 0] + m[..., 1, 1] + m[..., 2, 2]
+    candidates = np.stack([  # 4x the quaternion, each well conditioned where its term is largest
+        np.stack([1 + trace, m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0], m[..., 1, 0] - m[..., 0, 1]], -1),
+        np.stack([m[..., 2, 1] - m[..., 1, 2], 1 + m[..., 0, 0] - m[..., 1, 1] - m[..., 2, 2],
+                  m[..., 0, 1] + m[..., 1, 0], m[..., 0, 2] + m[..., 2, 0]], -1),
+        np.stack([m[..., 0, 2] - m[..., 2, 0], m[..., 0, 1] + m[..., 1, 0],
+                  1 - m[..., 0, 0] + m[..., 1, 1] - m[..., 2, 2], m[..., 1, 2] + m[..., 2, 1]], -1),
+        np.stack([m[..., 1, 0] - m[..., 0, 1], m[..., 0, 2] + m[..., 2, 0], m[..., 1, 2] + m[..., 2, 1],
+                  1 - m[..., 0, 0] - m[..., 1, 1] + m[..., 2, 2]], -1),
+    ], -2)
+    best = np.argmax(np.stack([trace, m[..., 0, 0], m[..., 1, 1], m[..., 2, 2]], -1), axis=-1)
+    quat = np.take_along_axis(candidates, best[..., None, None], axis=-2)[..., 0, :]
+    quat = quat / np.linalg.norm(quat, axis=-1, keepdims=True)
+    return np.where(quat[..., :1] < 0, -quat, quat)
+
+
+def continuous(quats):
+    """Quaternions (F, ..., 4) with signs chosen so consecutive frames are on the same side."""
+    dots = np.sum(quats[1:] * quats[:-1], axis=-1)
+    signs = np.concatenate([np.ones_like(dots[:1]), np.cumprod(np.where(dots < 0, -1.0, 1.0), axis=0)])
+    return quats * signs[..., None]
+
+
+def to_euler(matrix, order):
+    """Blender Euler angles (F, ..., 3) as (x, y, z) of matrices (F, ..., 3, 3), unwrapped over frames.
+
+    Blender's order "XYZ" applies X first: matrix = Rz @ Ry @ Rx.
+    """
+    i, j, k = (_AXES[axis] for axis in order)
+    parity = 1.0 if (j - i) % 3 == 1 else -1.0
+    m = matrix
+    first = np.arctan2(parity * m[..., k, j], m[..., k, k])
+    middle = np.arcsin(np.clip(-parity * m[..., k, i], -1.0, 1.0))
+    last = np.arctan2(parity * m[..., j, i], m[..., i, i])
+    angles = np.zeros(m.shape[:-2] + (3,))
+    angles[..., i], angles[..., j], angles[..., k] = first, middle, last
+    return np.unwrap(angles, axis=0)
+
+
+def to_axis_angle(quats):
+    """Blender axis-angle (angle, x, y, z) (..., 4) of unit quaternions; the Y axis at zero angle."""
+    vector = quats[..., 1:]
+    length = np.linalg.norm(vector, axis=-1)
+    angle = 2.0 * np.arctan2(length, quats[..., 0])
+    axis = np.where(length[..., None] > 1e-9, vector / np.maximum(length, 1e-12)[..., None], [0.0, 1.0, 0.0])
+    return np.concatenate([angle[..., None], axis], axis=-1)

@@ -13,6 +13,8 @@ from dataclasses import asdict, dataclass
 import torch
 from torch import nn
 
+from .model import repeat_encoded
+
 
 @dataclass(frozen=True)
 class SamplerConfig:
@@ -68,8 +70,7 @@ class DiverseSampler(nn.Module):
 
 def sample_motions(model, sampler, initial, trajectories, mask, count, generator=None):
     """``count`` diverse motions per condition with the frozen model: (B, count, T, J, 3)."""
-    prior_mean, prior_log_var, condition, pose_code = model.prior(initial, trajectories, mask)
+    prior_mean, prior_log_var, encoded = model.prior(initial, trajectories, mask)
     z, _ = sampler.latents(prior_mean, prior_log_var, count, generator)
-    repeat = lambda t: t.repeat_interleave(count, dim=0)
-    motion = model.decode(z, repeat(initial), repeat(condition), repeat(pose_code))
+    motion = model.decode(z, repeat_encoded(encoded, count))
     return motion.view(initial.shape[0], count, *motion.shape[1:])

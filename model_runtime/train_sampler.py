@@ -20,7 +20,7 @@ import torch
 
 from . import augment, checkpoints, masks, metrics, realism, weights
 from .data import dataset
-from .model import parameter_count
+from .model import parameter_count, repeat_encoded
 from .sampler import DiverseSampler, SamplerConfig
 from .train import WindowSampler, learning_rate
 
@@ -52,10 +52,9 @@ def pairwise_distances(motion):
 def sampler_losses(model, sampler, initial, future, mask, limits, margin, config, generator=None):
     """Weighted total and its parts for one batch."""
     count = config.samples
-    prior_mean, prior_log_var, condition, pose_code = model.prior(initial, future * mask[..., None], mask)
+    prior_mean, prior_log_var, encoded = model.prior(initial, future * mask[..., None], mask)
     z, (mean, log_var) = sampler.latents(prior_mean, prior_log_var, count, generator)
-    repeat = lambda t: t.repeat_interleave(count, dim=0)
-    motion = model.decode(z, repeat(initial), repeat(condition), repeat(pose_code))
+    motion = model.decode(z, repeat_encoded(encoded, count))
     motion = motion.view(initial.shape[0], count, *motion.shape[1:])
     distances = pairwise_distances(motion)
     upper = torch.triu(torch.ones(count, count, dtype=torch.bool), diagonal=1)

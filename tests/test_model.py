@@ -78,8 +78,9 @@ def test_evaluate_prints_and_writes_every_method_and_k(tmp_path, capsys, mocap_r
     clip = mocap_root / "cmu_mb_01-09" / "02" / "02_01.bvh"
     assert evaluate.main(["--data", str(clip), "--samples", "4", "--stride", "30", "--json", str(report)]) == 0
     result = json.loads(report.read_text())
-    assert set(result) == {"methods", "windows", "samples", "seconds"}
-    assert set(result["methods"]) == set(evaluate.METHODS)
+    assert set(result) == {"methods", "ground_truth", "windows", "samples", "seconds"}
+    shipped = set(evaluate.METHODS) if weights.SAMPLER_WEIGHTS.exists() else set(evaluate.METHODS) - {"sampler"}
+    assert set(result["methods"]) == shipped
     for by_k in result["methods"].values():
         assert set(by_k) == {"0", "1", "2", "3", "4"}
         assert all(set(row) == set(evaluate.METRICS) for row in by_k.values())

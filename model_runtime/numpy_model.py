@@ -1,0 +1,174 @@
+"""TrajeVAE and the diverse sampler at inference in plain numpy, from the same .npz weights.
+
+Blender ships numpy but not torch, and extensions may not download code at
+run time, so the add-on runs this path; torch is needed only for training.
+It mirrors ``model.TrajeVAE`` and ``sampler.DiverseSampler`` in eval mode
+(tests check they agree).
+"""
+
+import json
+
+import numpy as np
+
+from .dct import dct_matrix
+from .skeleton import NUM_JOINTS
+
+
+def _load(path):
+    with np.load(path, allow_pickle=False) as stored:
+        meta = json.loads(str(stored["__meta__"]))
+        arrays = {name: stored[name].astype(np.float32) for name in stored.files if name != "__meta__"}
+    return arrays, meta
+
+
+def _sinusoids(length, width):
+    position = np.arange(length, dtype=np.float32)[:, None]
+    rate = np.exp(np.arange(0, width, 2, dtype=np.float32) * (-np.log(10000.0) / width))
+    table = np.zeros((length, width), np.float32)
+    table[:, 0::2], table[:, 1::2] = np.sin(position * rate), np.cos(position * rate)
+    return table
+
+
+def _leaky(x):
+    return np.where(x > 0, x, 0.1 * x)
+
+
+class _Weights:
+    """Layers looked up by their torch state-dict prefix."""
+
+    def __init__(self, arrays):
+        self.arrays = arrays
+
+    def linear(self, prefix, x):
+        return x @ self.arrays[prefix + ".weight"].T + self.arrays[prefix + ".bias"]
+
+    def layer_norm(self, prefix, x, eps=1e-5):
+        mean = x.mean(-1, keepdims=True)
+        variance = ((x - mean) ** 2).mean(-1, keepdims=True)
+        return (x - mean) / np.sqrt(variance + eps) * self.arrays[prefix + ".weight"] + self.arrays[prefix + ".bias"]
+
+    def batch_norm(self, prefix, x, eps=1e-5):
+        a = self.arrays
+        return ((x - a[prefix + ".running_mean"]) / np.sqrt(a[prefix + ".running_var"] + eps)
+                * a[prefix + ".weight"] + a[prefix + ".bias"])
+
+    def mlp(self, prefix, x, final_norm=True):
+        """Linear, LayerNorm, LeakyReLU, Linear[, LayerNorm, LeakyReLU] (model._mlp)."""
+        x = self.linear(prefix + ".3", _leaky(self.layer_norm(prefix + ".1", self.linear(prefix + ".0", x))))
+        return _leaky(self.layer_norm(prefix + ".4", x)) if final_norm else x
+
+    def transformer(self, prefix, x, heads):
+        """Pre-norm transformer encoder layers (batch_first, ReLU feed-forward) on (B, N, W)."""
+        layer = 0
+        while f"{prefix}.layers.{layer}.norm1.weight" in self.arrays:
+            p = f"{prefix}.layers.{layer}"
+            x = x + self._attention(p + ".self_attn", self.layer_norm(p + ".norm1", x), heads)
+            hidden = np.maximum(self.linear(p + ".linear1", self.layer_norm(p + ".norm2", x)), 0.0)
+            x = x + self.linear(p + ".linear2", hidden)
+            layer += 1
+        return x
+
+    def _attention(self, prefix, x, heads):
+        a = self.arrays
+        batch, tokens, width = x.shape
+        qkv = x @ a[prefix + ".in_proj_weight"].T + a[prefix + ".in_proj_bias"]
+        q, k, v = (part.reshape(batch, tokens, heads, width // heads).transpose(0, 2, 1, 3)
+                   for part in np.split(qkv, 3, axis=-1))
+        scores = q @ k.transpose(0, 1, 3, 2) / np.sqrt(width // heads)
+        scores = np.exp(scores - scores.max(-1, keepdims=True))
+        attended = (scores / scores.sum(-1, keepdims=True)) @ v
+        return self.linear(prefix + ".out_proj", attended.transpose(0, 2, 1, 3).reshape(batch, tokens, width))
+
+
+class NumpyTrajeVAE:
+    """Prior and decoder of TrajeVAE; arrays as in ``model.TrajeVAE`` (float32)."""
+
+    def __init__(self, path):
+        arrays, self.meta = _load(path)
+        self.config = self.meta["config"]
+        self.weights = _Weights(arrays)
+        self.frames, width = self.config["frames"], self.config["width"]
+        self.dct = dct_matrix(self.frames)[: self.config["dct_keep"]].astype(np.float32)
+        self.time_code = _sinusoids(self.frames, width)
+        self.coefficient_code = _sinusoids(self.config["dct_keep"], width)
+
+    def prior(self, initial, trajectories, mask):
+        """(mean, log_var) (B, K, latent) and the encoded condition, for initial (B, 17, 3),
+        trajectories (B, T, 17, 3) and mask (B, T, 17)."""
+        w, heads = self.weights, self.config["heads"]
+        pose_code = w.mlp("pose_encoder", initial.reshape(len(initial), -1).astype(np.float32))
+        flat = (trajectories * mask[..., None]).reshape(*mask.shape[:2], -1)
+        condition = w.mlp("frame_encoder", np.concatenate([flat, mask], -1).astype(np.float32))
+        tokens = np.concatenate([condition, np.broadcast_to(pose_code[:, None], condition.shape)], -1)
+        tokens = w.transformer("frame_transformer", tokens + self.time_code, heads)
+        coefficients = np.einsum("kt,btw->bkw", self.dct, tokens)
+        coefficients = w.transformer("coefficient_transformer", coefficients + self.coefficient_code, heads)
+        out = w.linear("prior_head", w.transformer("prior_transformer", coefficients, heads))
+        mean, log_var = np.split(out, 2, axis=-1)
+        return mean, np.clip(log_var, -10.0, 10.0), (initial, condition, pose_code,
+                                                    _given_steps(initial, trajectories, mask))
+
+    def decode(self, z, encoded):
+        """Poses (B, T, 17, 3) from latents (B, K, latent) and the encoded condition of ``prior``."""
+        w = self.weights
+        initial, condition, pose_code, given = encoded
+        in_time = np.einsum("kt,bkl->btl", self.dct, z)
+        frames = np.concatenate([in_time, condition, np.broadcast_to(pose_code[:, None], condition.shape), given],
+                                -1).astype(np.float32)
+        hidden = w.transformer("decoder_transformer", w.mlp("decoder_input", frames, final_norm=False)
+                               + self.time_code, self.config["heads"])
+        offsets = w.linear("decoder_output.2", _leaky(w.linear("decoder_output.0", hidden)))
+        return initial[:, None] + np.cumsum(offsets.reshape(*hidden.shape[:2], NUM_JOINTS, 3), axis=1)
+
+    def sample(self, initial, trajectories, mask, count, rng, scale=1.0, sampler=None):
+        """``count`` motions per condition (B, count, T, 17, 3): prior samples, or the diverse
+        sampler's when given."""
+        mean, log_var, encoded = self.prior(initial, trajectories, mask)
+        if sampler is not None:
+            z = sampler.latents(mean, log_var, count, rng, scale)
+        else:
+            noise = rng.standard_normal((len(mean), count) + mean.shape[1:]).astype(np.float32)
+            z = mean[:, None] + scale * np.exp(0.5 * log_var)[:, None] * noise
+        encoded = tuple(np.repeat(part, count, axis=0) for part in encoded)
+        motion = self.decode(z.reshape(-1, *mean.shape[1:]), encoded)
+        return motion.reshape(len(initial), count, *motion.shape[1:])
+
+
+def _given_steps(initial, trajectories, mask):
+    """As ``TrajeVAE.given_steps``: (B, T, 2 * 17 * 3 + 17)."""
+    relative = (trajectories - initial[:, None]) * mask[..., None]
+    before = np.concatenate([np.zeros_like(relative[:, :1]), relative[:, :-1]], axis=1)
+    known_before = np.concatenate([np.ones_like(mask[:, :1]), mask[:, :-1]], axis=1)
+    steps = (relative - before) * (mask * known_before)[..., None]
+    return np.concatenate([relative.reshape(*mask.shape[:2], -1), steps.reshape(*mask.shape[:2], -1), mask], -1)
+
+
+class NumpySampler:
+    """The diverse sampler's latents, as ``sampler.DiverseSampler.latents`` in eval mode."""
+
+    def __init__(self, path):
+        arrays, self.meta = _load(path)
+        self.config = self.meta["config"]
+        self.weights = _Weights(arrays)
+
+    def standardised(self, prior_mean, prior_log_var, uniform):
+        """(mean, log_var) (B, count, latent_size) from Gumbel uniforms (B, count, bases)."""
+        w, c = self.weights, self.config
+        features = np.concatenate([prior_mean.reshape(len(prior_mean), -1), prior_log_var.reshape(len(prior_mean), -1)], -1)
+        features = _leaky(w.linear("condition.2", _leaky(w.linear("condition.0", features))))
+        bases = np.tanh(w.batch_norm("bases.1", w.linear("bases.0", features)))
+        bases = bases.reshape(len(features), c["bases"], c["base_width"])
+        logits = -np.log(-np.log(np.clip(uniform, 1e-9, 1 - 1e-9))) / c["temperature"]
+        weights = np.exp(logits - logits.max(-1, keepdims=True))
+        points = (weights / weights.sum(-1, keepdims=True)) @ bases
+        head = lambda p: w.linear(p + ".3", np.tanh(w.batch_norm(p + ".1", w.linear(p + ".0", points))))
+        return head("mean_head"), np.clip(head("log_var_head"), -10.0, 10.0)
+
+    def latents(self, prior_mean, prior_log_var, count, rng, scale=1.0):
+        """z (B, count, K, latent) in the prior's space: mu + scale * sigma * (mean_k + sigma_k * eps)."""
+        batch = len(prior_mean)
+        uniform = rng.random((batch, count, self.config["bases"]))
+        mean, log_var = self.standardised(prior_mean, prior_log_var, uniform)
+        standard = mean + np.exp(0.5 * log_var) * rng.standard_normal(mean.shape)
+        standard = standard.reshape(batch, count, *prior_mean.shape[1:])
+        return (prior_mean[:, None] + scale * np.exp(0.5 * prior_log_var)[:, None] * standard).astype(np.float32)

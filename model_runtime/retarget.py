@@ -1,0 +1,241 @@
+"""Joint positions to bone rotations on an artist's rig, vectorised over frames (no bpy).
+
+Everything happens in the rig's armature space and relative to the rig's
+initial pose (the evaluated pose at the start frame), so rest-pose axes, bone
+rolls and units do not matter. Each mapped bone gets a rigid world "delta"
+(F, 4, 4) that carries its initial matrix to the new one:
+
+- Hip (the root): pelvis frame (hips across, torso up) and translation of the
+  pelvis centre, moved where a leg could not reach its foot.
+- Spine: chest frame (shoulders across, torso up), about the bone's head.
+- Thorax and Neck (the neck and head bones): aimed at the next joint.
+- Legs and arms: a two-bone solve from the (carried) hip or shoulder to the
+  generated ankle or wrist, bending towards the generated knee or elbow, with
+  the rig's own bone lengths (never stretched), the upper bone twisted so the
+  limb bends about its initial hinge. Feet keep their initial orientation
+  turned with the pelvis heading; hands follow the forearm.
+
+A bone's parent space is assumed to move with its nearest mapped ancestor
+(``drivers``): exact when the bones between them keep their initial pose.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .skeleton import JOINT_INDEX
+
+J = JOINT_INDEX
+LIMBS = (("RHip", "RKnee", "RFoot"), ("LHip", "LKnee", "LFoot"),
+         ("RShoulder", "RElbow", "RWrist"), ("LShoulder", "LElbow", "LWrist"))
+REQUIRED_JOINTS = ("Hip",) + tuple(joint for limb in LIMBS for joint in limb) + ("Thorax", "Neck")
+
+
+@dataclass
+class RigState:
+    """A rig at its initial pose, in armature space.
+
+    bones: canonical joint -> keyed bone name (joints without a bone absent)
+    matrices: bone -> (4, 4) initial pose matrix; bases: bone -> (4, 4) initial matrix_basis
+    drivers: bone -> the mapped bone whose motion carries its parent space, or None
+    joints: (17, 3) initial joint positions
+    """
+
+    bones: dict
+    matrices: dict
+    bases: dict
+    drivers: dict
+    joints: np.ndarray
+
+
+def _unit(v, eps=1e-9):
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), eps)
+
+
+def frame(primary, secondary):
+    """Orthonormal frames (..., 3, 3) as columns (x, y, z): z along ``primary`` (..., 3), x along
+    ``secondary`` made orthogonal to it."""
+    z = _unit(primary)
+    x = _unit(secondary - np.sum(secondary * z, axis=-1, keepdims=True) * z)
+    return np.stack([x, np.cross(z, x), z], axis=-1)
+
+
+def swing(a, b):
+    """Smallest rotations (..., 3, 3) taking directions a to b (..., 3)."""
+    a, b = _unit(a), _unit(b)
+    axis = np.cross(a, b)
+    cos = np.sum(a * b, axis=-1)
+    opposite = cos < -1.0 + 1e-9
+    if np.any(opposite):  # any axis perpendicular to a
+        helper = np.where(np.abs(a[..., :1]) < 0.9, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+        axis = np.where(opposite[..., None], _unit(np.cross(a, helper)) * 1e-9, axis)
+    k = np.zeros(axis.shape + (3,))
+    k[..., 0, 1], k[..., 0, 2], k[..., 1, 2] = -axis[..., 2], axis[..., 1], -axis[..., 0]
+    k = k - np.swapaxes(k, -1, -2)
+    scale = 1.0 / np.maximum(1.0 + cos, 1e-18)
+    rotation = np.eye(3) + k + (k @ k) * scale[..., None, None]
+    flip = 2.0 * np.einsum("...i,...j->...ij", _unit(axis), _unit(axis)) - np.eye(3)
+    return np.where(opposite[..., None, None], flip, rotation)
+
+
+def _rigid(rotation, pivot_before, pivot_after):
+    """Deltas (F, 4, 4): rotate about pivot_before (3,) and move it to pivot_after (F, 3)."""
+    delta = np.zeros(rotation.shape[:-2] + (4, 4))
+    delta[..., :3, :3] = rotation
+    delta[..., :3, 3] = pivot_after - rotation @ pivot_before
+    delta[..., 3, 3] = 1.0
+    return delta
+
+
+def _apply(delta, point):
+    """Points (F, 3) of a point (3,) moved by deltas (F, 4, 4)."""
+    return delta[..., :3, :3] @ point + delta[..., :3, 3]
+
+
+def _twist_to(rotation, axis, reference, wanted, weight):
+    """Rotations turned about their bone ``axis`` (F, 3) so ``reference`` (F, 3) meets ``wanted``
+    (F, 3) in the plane across the axis, by ``weight`` (F,)."""
+    axis = _unit(axis)
+    flat = lambda v: _unit(v - np.sum(v * axis, axis=-1, keepdims=True) * axis)
+    r, w = flat(reference), flat(wanted)
+    angle = np.arctan2(np.sum(np.cross(r, w) * axis, axis=-1), np.sum(r * w, axis=-1)) * weight
+    k = np.zeros(axis.shape + (3,))
+    k[..., 0, 1], k[..., 0, 2], k[..., 1, 2] = -axis[..., 2], axis[..., 1], -axis[..., 0]
+    k = k - np.swapaxes(k, -1, -2)
+    twist = np.eye(3) + np.sin(angle)[..., None, None] * k + (1 - np.cos(angle))[..., None, None] * (k @ k)
+    return twist @ rotation
+
+
+def _bend_weight(upper, lower):
+    """0 for a straight limb, 1 past 25 degrees of bend: (F,)."""
+    cos = np.sum(_unit(upper) * _unit(lower), axis=-1)
+    bend = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+    return np.clip((bend - 5.0) / 20.0, 0.0, 1.0)
+
+
+def joint_deltas(rig, targets):
+    """World deltas joint -> (F, 4, 4) for every mapped joint, from targets (F, 17, 3)."""
+    start, frames = rig.joints, len(targets)
+    deltas = {}
+
+    def carried(joint):  # delta of the mapped bone that carries this joint's bone
+        driver = rig.drivers.get(rig.bones[joint])
+        owner = next((j for j, b in rig.bones.items() if b == driver), None)
+        return deltas[owner] if owner is not None else np.broadcast_to(np.eye(4), (frames, 4, 4))
+
+    def head(joint):
+        return rig.matrices[rig.bones[joint]][:3, 3]
+
+    across = lambda pose, l, r: pose[..., J[l], :] - pose[..., J[r], :]
+    up = lambda pose: pose[..., J["Thorax"], :] - pose[..., J["Hip"], :]
+    pelvis = frame(up(targets), across(targets, "LHip", "RHip")) @ frame(
+        up(start), across(start, "LHip", "RHip")).T
+    deltas["Hip"] = _reach_feet(rig, targets, _rigid(pelvis, start[J["Hip"]], targets[:, J["Hip"]]))
+    if "Spine" in rig.bones:
+        chest = frame(up(targets), across(targets, "LShoulder", "RShoulder")) @ frame(
+            up(start), across(start, "LShoulder", "RShoulder")).T
+        deltas["Spine"] = _rigid(chest, head("Spine"), _apply(carried("Spine"), head("Spine")))
+    for joint, child in (("Thorax", "Neck"), ("Neck", "Head")):
+        parent = carried(joint)
+        pivot = _apply(parent, start[J[joint]])
+        rotation = parent[:, :3, :3]
+        rotation = swing(rotation @ (start[J[child]] - start[J[joint]]), targets[:, J[child]] - pivot) @ rotation
+        deltas[joint] = _rigid(rotation, start[J[joint]], pivot)
+    heading = np.arctan2(pelvis[:, 1, 0], pelvis[:, 0, 0])  # turn of the pelvis about Z
+    for upper, lower, end in LIMBS:
+        deltas.update(_limb(rig, targets, carried(upper), upper, lower, end, heading))
+    return deltas
+
+
+def _reach_feet(rig, targets, pelvis, rounds=4):
+    """The pelvis delta (F, 4, 4) moved toward any foot target the rig's leg cannot reach.
+
+    Generated hips can sit a little too far from the feet for the rig's legs
+    (a pinned foot, other proportions); moving the body keeps the feet planted
+    instead of leaving them short of the floor.
+    """
+    start = rig.joints
+    pelvis = pelvis.copy()
+    for _ in range(rounds):
+        shift = np.zeros((len(targets), 3))
+        for upper, lower, end in LIMBS[:2]:
+            reach = 0.999 * (np.linalg.norm(start[J[lower]] - start[J[upper]])
+                             + np.linalg.norm(start[J[end]] - start[J[lower]]))
+            to_end = targets[:, J[end]] - _apply(pelvis, start[J[upper]])
+            distance = np.linalg.norm(to_end, axis=-1, keepdims=True)
+            shift += np.maximum(distance - reach, 0.0) * to_end / np.maximum(distance, 1e-9)
+        pelvis[:, :3, 3] += shift
+    return pelvis
+
+
+def _limb(rig, targets, parent, upper, lower, end, heading):
+    """Deltas of a limb's three joints: a two-bone solve toward the end target."""
+    start = rig.joints
+    root = _apply(parent, start[J[upper]])
+    first, second = (np.linalg.norm(start[J[b]] - start[J[a]]) for a, b in ((upper, lower), (lower, end)))
+    to_end = targets[:, J[end]] - root
+    reach = np.clip(np.linalg.norm(to_end, axis=-1), abs(first - second) + 1e-6, first + second - 1e-6)
+    along = _unit(to_end)
+    carried_bend = parent[:, :3, :3] @ (start[J[lower]] - 0.5 * (start[J[upper]] + start[J[end]]))
+    pole = targets[:, J[lower]] - root
+    pole = pole - np.sum(pole * along, axis=-1, keepdims=True) * along
+    weak = np.linalg.norm(pole, axis=-1) < 1e-3 * first
+    pole = _unit(np.where(weak[:, None], carried_bend - np.sum(carried_bend * along, -1, keepdims=True) * along,
+                          pole))
+    cos = (first ** 2 + reach ** 2 - second ** 2) / (2.0 * first * reach)
+    middle = root + first * (cos[:, None] * along + np.sqrt(np.clip(1.0 - cos ** 2, 0.0, 1.0))[:, None] * pole)
+    goal = root + along * reach[:, None]
+
+    rotation = parent[:, :3, :3]
+    initial_upper = start[J[lower]] - start[J[upper]]
+    rotation = swing(rotation @ initial_upper, middle - root) @ rotation
+    initial_hinge = np.cross(initial_upper, start[J[end]] - start[J[lower]])
+    if np.linalg.norm(initial_hinge) < 0.05 * first * second:  # straight at the start
+        initial_hinge = _straight_hinge(rig, upper)
+    rotation = _twist_to(rotation, middle - root, rotation @ initial_hinge, np.cross(middle - root, goal - middle),
+                         _bend_weight(middle - root, goal - middle))
+    upper_delta = _rigid(rotation, start[J[upper]], root)
+    lower_rotation = swing(rotation @ (start[J[end]] - start[J[lower]]), goal - middle) @ rotation
+    lower_delta = _rigid(lower_rotation, start[J[lower]], middle)
+    if end.endswith("Foot"):
+        turn = np.zeros((len(targets), 3, 3))
+        turn[:, 0, 0], turn[:, 0, 1], turn[:, 1, 0], turn[:, 1, 1], turn[:, 2, 2] = (
+            np.cos(heading), -np.sin(heading), np.sin(heading), np.cos(heading), 1.0)
+        end_rotation = turn
+    else:
+        end_rotation = lower_rotation
+    return {upper: upper_delta, lower: lower_delta, end: _rigid(end_rotation, start[J[end]], goal)}
+
+
+def _straight_hinge(rig, upper):
+    """The hinge a limb straight at the start will bend about: the body's left-right axis, signed
+    as cross(upper, lower) of a knee bending forward (to the left) and an elbow folding forward
+    (to the right)."""
+    start = rig.joints
+    if upper.endswith("Hip"):
+        return start[J["LHip"]] - start[J["RHip"]]
+    return start[J["RShoulder"]] - start[J["LShoulder"]]
+
+
+def _rigid_inverse(delta):
+    """Inverses of rigid transforms (..., 4, 4), without a general matrix inverse."""
+    inverse = np.zeros_like(delta)
+    rotation = np.swapaxes(delta[..., :3, :3], -1, -2)
+    inverse[..., :3, :3] = rotation
+    inverse[..., :3, 3] = -(rotation @ delta[..., :3, 3, None])[..., 0]
+    inverse[..., 3, 3] = 1.0
+    return inverse
+
+
+def bone_bases(rig, deltas):
+    """matrix_basis (F, 4, 4) per keyed bone from joint deltas: parent space^-1 @ delta @ initial,
+    where the parent space is the driver's delta applied to the initial parent space."""
+    bases = {}
+    by_bone = {bone: deltas[joint] for joint, bone in rig.bones.items() if joint in deltas}
+    for bone, delta in by_bone.items():
+        initial, basis = rig.matrices[bone], rig.bases[bone]
+        from_parent_space = basis @ np.linalg.inv(initial)  # inverse of initial @ basis^-1
+        driver = rig.drivers.get(bone)
+        moved = _rigid_inverse(by_bone[driver]) @ delta if driver in by_bone else delta
+        bases[bone] = from_parent_space @ moved @ initial
+    return bases

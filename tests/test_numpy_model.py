@@ -1,0 +1,59 @@
+"""The numpy inference path (what runs in a stock Blender) agrees with the torch model."""
+
+import numpy as np
+import torch
+
+from model_runtime import masks, weights
+from model_runtime.model import ModelConfig, TrajeVAE
+from model_runtime.numpy_model import NumpySampler, NumpyTrajeVAE
+from model_runtime.sampler import DiverseSampler, SamplerConfig
+
+
+def _condition(all_clips):
+    from model_runtime.data import dataset
+    windows = dataset.windows(all_clips[:2], future=60, stride=45)[:3]
+    mask = np.broadcast_to(masks.evaluation_mask(3, 60), (len(windows), 60, 17)).astype(np.float32)
+    return windows[:, 0], windows[:, 1:] * mask[..., None], mask
+
+
+def test_numpy_prior_and_decoder_match_torch(tmp_path, all_clips):
+    torch.manual_seed(0)
+    torch_model = TrajeVAE(ModelConfig()).eval()
+    with torch.no_grad():  # no zero-initialised heads: every weight matters
+        for parameter in torch_model.parameters():
+            parameter.add_(0.05 * torch.randn_like(parameter))
+    path = tmp_path / "model.npz"
+    weights.save(path, torch_model, ModelConfig())
+    numpy_model = NumpyTrajeVAE(path)
+    initial, trajectories, mask = _condition(all_clips)
+    with torch.no_grad():
+        expected = torch_model.prior(*(torch.from_numpy(np.ascontiguousarray(a)) for a in (initial, trajectories, mask)))
+    got = numpy_model.prior(initial, trajectories, mask)
+    for a, b in zip(got[:2] + got[2], expected[:2] + expected[2]):
+        np.testing.assert_allclose(a, b.numpy(), atol=2e-4)
+    z = np.random.default_rng(0).standard_normal(got[0].shape).astype(np.float32)
+    with torch.no_grad():
+        motion = torch_model.decode(torch.from_numpy(z), expected[2])
+    np.testing.assert_allclose(numpy_model.decode(z, got[2]), motion.numpy(), atol=1e-3)
+
+
+def test_numpy_sampler_matches_torch(tmp_path, all_clips):
+    torch.manual_seed(0)
+    config = SamplerConfig()
+    sampler = DiverseSampler(config)
+    with torch.no_grad():  # non-trivial batch-norm statistics
+        for module in sampler.modules():
+            if isinstance(module, torch.nn.BatchNorm1d):
+                module.running_mean.uniform_(-0.5, 0.5)
+                module.running_var.uniform_(0.5, 2.0)
+    sampler.eval()
+    path = tmp_path / "sampler.npz"
+    weights.save(path, sampler, config)
+    mean = torch.randn(2, 20, 32)
+    log_var = torch.randn(2, 20, 32) * 0.1
+    with torch.no_grad():
+        expected = sampler(mean, log_var, 4, torch.Generator().manual_seed(3))
+    uniform = torch.rand((2, 4, config.bases), generator=torch.Generator().manual_seed(3))  # what it drew
+    got = NumpySampler(path).standardised(mean.numpy(), log_var.numpy(), uniform.numpy())
+    np.testing.assert_allclose(got[0], expected[0].numpy(), atol=1e-4)
+    np.testing.assert_allclose(got[1], expected[1].numpy(), atol=1e-4)

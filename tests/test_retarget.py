@@ -1,0 +1,101 @@
+"""Retargeting and rotation conversions in plain numpy, on real motion."""
+
+import numpy as np
+import pytest
+
+from model_runtime import retarget, rotations
+from model_runtime.data import dataset
+from model_runtime.skeleton import JOINT_INDEX
+
+# A plain rig of the canonical joints, each bone's head on its joint.
+PARENTS = {"RHip": "Hip", "RKnee": "RHip", "RFoot": "RKnee", "LHip": "Hip", "LKnee": "LHip", "LFoot": "LKnee",
+           "Spine": "Hip", "Thorax": "Spine", "Neck": "Thorax", "LShoulder": "Spine", "LElbow": "LShoulder",
+           "LWrist": "LElbow", "RShoulder": "Spine", "RElbow": "RShoulder", "RWrist": "RElbow"}
+
+
+def _plain_rig(pose):
+    rest = {}
+    for joint in ("Hip",) + tuple(PARENTS):
+        matrix = np.eye(4)
+        matrix[:3, 3] = pose[JOINT_INDEX[joint]]
+        rest[joint] = matrix
+    bones = {joint: joint for joint in rest}
+    return retarget.RigState(bones=bones, matrices=rest, bases={b: np.eye(4) for b in rest},
+                             drivers={b: PARENTS.get(b) for b in rest}, joints=pose.copy()), rest
+
+
+def _forward(rest, bases):
+    """Pose matrices (F, 4, 4) per bone of the plain rig."""
+    pose = {}
+    for bone in ("Hip",) + tuple(PARENTS):
+        parent = PARENTS.get(bone)
+        local = rest[bone] @ bases[bone] if parent is None else (
+            pose[parent] @ np.linalg.inv(rest[parent]) @ rest[bone] @ bases[bone])
+        pose[bone] = local
+    return pose
+
+
+@pytest.fixture(scope="module")
+def motion(all_clips):
+    window = dataset.windows(all_clips[5:6], future=60, stride=60)[0]
+    return window  # (61, 17, 3): bones rigid over time
+
+
+def test_retarget_puts_hands_and_feet_on_their_targets_with_rig_lengths(motion):
+    rig, rest = _plain_rig(motion[0])
+    targets = motion[1:]
+    bases = retarget.bone_bases(rig, retarget.joint_deltas(rig, targets))
+    pose = _forward(rest, bases)
+    for end in ("RFoot", "LFoot", "RWrist", "LWrist"):
+        error = np.linalg.norm(pose[end][:, :3, 3] - targets[:, JOINT_INDEX[end]], axis=-1)
+        assert error.mean() < 0.005, end
+    for joint in PARENTS:  # everything else close, bones never stretched
+        error = np.linalg.norm(pose[joint][:, :3, 3] - targets[:, JOINT_INDEX[joint]], axis=-1)
+        assert error.mean() < 0.06, joint
+    thigh = np.linalg.norm(pose["RKnee"][:, :3, 3] - pose["RHip"][:, :3, 3], axis=-1)
+    np.testing.assert_allclose(thigh, np.linalg.norm(motion[0, JOINT_INDEX["RKnee"]] - motion[0, JOINT_INDEX["RHip"]]),
+                               rtol=1e-6)
+
+
+def test_retarget_of_the_initial_pose_changes_nothing(motion):
+    rig, rest = _plain_rig(motion[0])
+    bases = retarget.bone_bases(rig, retarget.joint_deltas(rig, np.repeat(motion[:1], 3, axis=0)))
+    for bone, basis in bases.items():
+        np.testing.assert_allclose(basis, np.broadcast_to(np.eye(4), basis.shape), atol=1e-5, err_msg=bone)
+
+
+def test_unreachable_targets_stretch_nothing(motion):
+    rig, rest = _plain_rig(motion[0])
+    targets = motion[1:].copy()
+    targets[:, JOINT_INDEX["LWrist"]] += [0.0, 0.0, 1.0]  # a metre above reach
+    pose = _forward(rest, retarget.bone_bases(rig, retarget.joint_deltas(rig, targets)))
+    forearm = np.linalg.norm(pose["LWrist"][:, :3, 3] - pose["LElbow"][:, :3, 3], axis=-1)
+    np.testing.assert_allclose(forearm, np.linalg.norm(motion[0, JOINT_INDEX["LWrist"]] - motion[0, JOINT_INDEX["LElbow"]]),
+                               rtol=1e-6)
+
+
+@pytest.mark.parametrize("order", ["XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX"])
+def test_euler_and_quaternion_conversions_round_trip(order):
+    rng = np.random.default_rng(1)
+    quats = rng.standard_normal((50, 4))
+    quats /= np.linalg.norm(quats, axis=-1, keepdims=True)
+    matrices = rotations.to_matrix(quats)
+    back = rotations.to_matrix(rotations.from_matrix(matrices))
+    np.testing.assert_allclose(back, matrices, atol=1e-9)
+    angles = rotations.to_euler(matrices, order)
+    # Blender's "XYZ" (X first) is Rz @ Ry @ Rx, which rotations.euler calls "ZYX"; angles are (x, y, z)
+    reversed_order = order[::-1]
+    rebuilt = rotations.to_matrix(rotations.euler(np.degrees(angles[:, ["XYZ".index(a) for a in reversed_order]]),
+                                                  reversed_order))
+    np.testing.assert_allclose(rebuilt, matrices, atol=1e-9)
+    axis_angle = rotations.to_axis_angle(rotations.from_matrix(matrices))
+    half = axis_angle[:, :1] / 2
+    np.testing.assert_allclose(rotations.to_matrix(np.concatenate([np.cos(half), np.sin(half) * axis_angle[:, 1:]], -1)),
+                               matrices, atol=1e-9)
+
+
+def test_quaternions_are_made_continuous():
+    quats = rotations.axis_angle("Z", np.linspace(0, 6.0, 40))
+    flipped = np.where(np.arange(40)[:, None] % 3 == 0, -quats, quats)
+    smooth = rotations.continuous(flipped)
+    assert np.all(np.sum(smooth[1:] * smooth[:-1], axis=-1) > 0)

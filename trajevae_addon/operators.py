@@ -1,0 +1,126 @@
+"""Operators: generate, cycle, keep and discard variants; bind and unbind curves."""
+
+import bpy
+from bpy.props import IntProperty
+
+from . import api, curves, pipeline, rig_state, variants
+
+
+def _armature(context):
+    obj = context.active_object
+    return obj if obj is not None and obj.type == 'ARMATURE' else None
+
+
+class _ArmatureOperator:
+    @classmethod
+    def poll(cls, context):
+        return _armature(context) is not None
+
+
+class TRAJEVAE_OT_generate(_ArmatureOperator, bpy.types.Operator):
+    """Generate N full-body motions over the scene frame range that follow the bound curves"""
+
+    bl_idname = "trajevae.generate"
+    bl_label = "Generate Variants"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    def execute(self, context):
+        armature = _armature(context)
+        settings = armature.trajevae
+        window_manager = context.window_manager
+        window_manager.progress_begin(0.0, 1.0)
+        try:
+            report = pipeline.generate_variants(armature, settings.variant_count, settings.seed,
+                                                settings.diversity, context.scene, window_manager.progress_update)
+        except (rig_state.RigError, curves.CurveError) as error:
+            self.report({'ERROR'}, str(error))
+            return {'CANCELLED'}
+        finally:
+            window_manager.progress_end()
+        total = sum(report.seconds.values())
+        self.report({'INFO'}, f"{len(report.actions)} variants in {total:.2f} s")
+        return {'FINISHED'}
+
+
+class TRAJEVAE_OT_step_variant(_ArmatureOperator, bpy.types.Operator):
+    """Show the previous or next variant"""
+
+    bl_idname = "trajevae.step_variant"
+    bl_label = "Step Variant"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    step: IntProperty(default=1)
+
+    def execute(self, context):
+        settings = _armature(context).trajevae
+        if not len(settings.variants):
+            return {'CANCELLED'}
+        settings.active_variant = (settings.active_variant + self.step) % len(settings.variants)
+        return {'FINISHED'}
+
+
+class TRAJEVAE_OT_keep_variant(_ArmatureOperator, bpy.types.Operator):
+    """Keep the shown variant as the rig's action and delete the other variants"""
+
+    bl_idname = "trajevae.keep_variant"
+    bl_label = "Keep"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    def execute(self, context):
+        armature = _armature(context)
+        settings = armature.trajevae
+        if not 0 <= settings.active_variant < len(settings.variants):
+            self.report({'ERROR'}, "no variant to keep")
+            return {'CANCELLED'}
+        variants.keep(armature, settings.variants[settings.active_variant].action)
+        return {'FINISHED'}
+
+
+class TRAJEVAE_OT_discard_variants(_ArmatureOperator, bpy.types.Operator):
+    """Delete every variant and give the rig back its own action"""
+
+    bl_idname = "trajevae.discard_variants"
+    bl_label = "Discard"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    def execute(self, context):
+        variants.restore_original(_armature(context))
+        return {'FINISHED'}
+
+
+class TRAJEVAE_OT_bind_curve(_ArmatureOperator, bpy.types.Operator):
+    """Make the active bone follow the selected curve object"""
+
+    bl_idname = "trajevae.bind_curve"
+    bl_label = "Bind Selected Curve"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    def execute(self, context):
+        armature = _armature(context)
+        bone = armature.data.bones.active
+        curve = next((obj for obj in context.selected_objects if obj.type == 'CURVE'), None)
+        if bone is None or curve is None:
+            self.report({'ERROR'}, "select a curve, then the armature with the bone to bind active")
+            return {'CANCELLED'}
+        api.bind_curve(armature, bone.name, curve)
+        return {'FINISHED'}
+
+
+class TRAJEVAE_OT_unbind(_ArmatureOperator, bpy.types.Operator):
+    """Remove the selected binding"""
+
+    bl_idname = "trajevae.unbind"
+    bl_label = "Unbind"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    def execute(self, context):
+        settings = _armature(context).trajevae
+        if 0 <= settings.active_binding < len(settings.bindings):
+            settings.bindings.remove(settings.active_binding)
+            settings.active_binding = max(0, settings.active_binding - 1)
+        return {'FINISHED'}
+
+
+CLASSES = (TRAJEVAE_OT_generate, TRAJEVAE_OT_step_variant, TRAJEVAE_OT_keep_variant,
+           TRAJEVAE_OT_discard_variants, TRAJEVAE_OT_bind_curve, TRAJEVAE_OT_unbind)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)

@@ -1,0 +1,104 @@
+"""Reading an artist's rig: its mapping (auto-detected, merged with overrides) and its pose at a frame."""
+
+import json
+
+import numpy as np
+
+from . import rig_mapping
+from .runtime import profiles, retarget, skeleton
+
+J = skeleton.JOINT_INDEX
+
+
+class RigError(ValueError):
+    """The rig cannot be used as it is; the message says what to fix."""
+
+
+def detected(armature):
+    """(profile name, {joint: bone or None}) from the armature's bone names alone."""
+    return rig_mapping.detect({bone.name: bone.parent.name if bone.parent else None
+                               for bone in armature.data.bones})
+
+
+def mapping(armature):
+    """{joint: bone or None}: the detected mapping with the artist's stored overrides on top."""
+    _, auto = detected(armature)
+    overrides = armature.trajevae.mapping
+    bones = armature.data.bones
+    return {joint: (getattr(overrides, joint) if getattr(overrides, joint) in bones else auto[joint])
+            for joint in skeleton.JOINT_NAMES}
+
+
+def checked_mapping(armature):
+    bones = mapping(armature)
+    gaps = rig_mapping.missing(bones)
+    if gaps:
+        raise RigError(f"{armature.name}: no bone mapped for {', '.join(gaps)}; "
+                       "set them under TrajeVAE > Rig Mapping")
+    return bones
+
+
+def apply_switches(armature, values):
+    """Set rig switches {(pose bone, property): value}; returns the values they had."""
+    before = {}
+    for (bone, prop), value in values.items():
+        pose_bone = armature.pose.bones.get(bone)
+        if pose_bone is not None and prop in pose_bone:
+            before[(bone, prop)] = pose_bone[prop]
+            pose_bone[prop] = value
+    return before
+
+
+def switches_to_json(values):
+    return json.dumps([[bone, prop, value] for (bone, prop), value in values.items()])
+
+
+def switches_from_json(text):
+    return {(bone, prop): value for bone, prop, value in (json.loads(text) if text else [])}
+
+
+def _drivers(armature, keyed):
+    """Keyed bone -> its nearest keyed ancestor (whose motion carries its parent space) or None."""
+    out = {}
+    for bone in keyed:
+        parent = armature.data.bones[bone].parent
+        while parent is not None and parent.name not in keyed:
+            parent = parent.parent
+        out[bone] = parent.name if parent is not None else None
+    return out
+
+
+def read(armature, bones, depsgraph):
+    """The rig as the retargeter needs it (armature space) and its joints in world space (17, 3).
+
+    Call with the scene at the start frame; rig switches must already be set.
+    """
+    evaluated = armature.evaluated_get(depsgraph)
+    pose = evaluated.pose.bones
+    keyed = {joint: bone for joint, bone in bones.items() if bone and joint != "Head"}
+    names = set(keyed.values())
+    matrices = {bone: np.array(pose[bone].matrix, dtype=np.float64) for bone in names}
+    bases = {bone: np.array(pose[bone].matrix_basis, dtype=np.float64) for bone in names}
+    joints = np.zeros((skeleton.NUM_JOINTS, 3))
+    for joint in profiles.MAPPED_JOINTS:
+        joints[J[joint]] = matrices[keyed[joint]][:3, 3]
+    joints[J["Hip"]] = 0.5 * (joints[J["LHip"]] + joints[J["RHip"]])
+    joints[J["Spine"]] = 0.5 * (joints[J["Hip"]] + joints[J["Thorax"]])
+    if bones.get("Head"):
+        joints[J["Head"]] = np.array(pose[bones["Head"]].head)
+    else:
+        legs = 0.5 * sum(np.linalg.norm(joints[J[a]] - joints[J[b]]) for a, b in
+                         (("RHip", "RKnee"), ("RKnee", "RFoot"), ("LHip", "LKnee"), ("LKnee", "LFoot")))
+        head_axis = matrices[keyed["Neck"]][:3, 1]
+        joints[J["Head"]] = joints[J["Neck"]] + profiles.HEAD_LENGTH_PER_LEG * legs * head_axis / np.linalg.norm(
+            head_axis)
+    state = retarget.RigState(bones=keyed, matrices=matrices, bases=bases, drivers=_drivers(armature, names),
+                              joints=joints)
+    world = np.array(armature.matrix_world, dtype=np.float64)
+    return state, joints @ world[:3, :3].T + world[:3, 3]
+
+
+def to_armature_space(armature, points):
+    """World points (..., 3) in the armature's object space."""
+    inverse = np.linalg.inv(np.array(armature.matrix_world, dtype=np.float64))
+    return points @ inverse[:3, :3].T + inverse[:3, 3]

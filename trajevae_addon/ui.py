@@ -1,0 +1,104 @@
+"""Sidebar panels in the 3D View (N panel, "TrajeVAE" tab)."""
+
+import bpy
+
+from . import inference, rig_mapping, rig_state
+from .runtime import skeleton
+
+
+def _armature(context):
+    obj = context.active_object
+    return obj if obj is not None and obj.type == 'ARMATURE' else None
+
+
+class TRAJEVAE_UL_bindings(bpy.types.UIList):
+    def draw_item(self, context, layout, data, item, icon, active_data, active_property, index=0, flt_flag=0):
+        row = layout.row(align=True)
+        row.label(text=item.bone, icon='BONE_DATA')
+        row.prop(item, "curve", text="")
+
+
+class TRAJEVAE_UL_variants(bpy.types.UIList):
+    def draw_item(self, context, layout, data, item, icon, active_data, active_property, index=0, flt_flag=0):
+        layout.label(text=item.action.name if item.action else "(deleted)", icon='ACTION')
+
+
+class _SidebarPanel:
+    bl_space_type = 'VIEW_3D'
+    bl_region_type = 'UI'
+    bl_category = "TrajeVAE"
+
+
+class TRAJEVAE_PT_main(_SidebarPanel, bpy.types.Panel):
+    bl_label = "TrajeVAE Motion"
+
+    def draw(self, context):
+        layout = self.layout
+        armature = _armature(context)
+        if armature is None:
+            layout.label(text="Select an armature", icon='INFO')
+            layout.operator("trajevae.add_mannequin", icon='ARMATURE_DATA')
+            return
+        settings = armature.trajevae
+        profile, _ = rig_state.detected(armature)
+        gaps = rig_mapping.missing(rig_state.mapping(armature))
+        box = layout.box()
+        box.label(text=f"Rig: {armature.name} ({profile})", icon='ARMATURE_DATA')
+        if gaps:
+            box.label(text=f"Unmapped: {', '.join(gaps)}", icon='ERROR')
+            box.label(text="Fix them under Rig Mapping below")
+        if not inference.torch_installed():
+            box.label(text="Runs on numpy: torch is not needed here", icon='CHECKMARK')
+
+        layout.label(text="Curves (bone follows curve)")
+        row = layout.row()
+        row.template_list("TRAJEVAE_UL_bindings", "", settings, "bindings", settings, "active_binding", rows=2)
+        column = row.column(align=True)
+        column.operator("trajevae.bind_curve", icon='ADD', text="")
+        column.operator("trajevae.unbind", icon='REMOVE', text="")
+        if not len(settings.bindings):
+            layout.label(text="No curves: diverse motions from the current pose", icon='INFO')
+
+        column = layout.column(align=True)
+        column.prop(settings, "variant_count")
+        column.prop(settings, "seed")
+        column.prop(settings, "diversity", slider=True)
+        generate = layout.row()
+        generate.scale_y = 1.4
+        generate.enabled = not gaps
+        generate.operator("trajevae.generate", text=f"Generate {settings.variant_count} Variants", icon='PLAY')
+
+        if len(settings.variants):
+            layout.label(text="Variants")
+            layout.template_list("TRAJEVAE_UL_variants", "", settings, "variants", settings, "active_variant",
+                                 rows=3)
+            row = layout.row(align=True)
+            row.operator("trajevae.step_variant", text="", icon='TRIA_LEFT').step = -1
+            row.operator("trajevae.step_variant", text="", icon='TRIA_RIGHT').step = 1
+            row.operator("trajevae.keep_variant", icon='CHECKMARK')
+            row.operator("trajevae.discard_variants", icon='X')
+
+
+class TRAJEVAE_PT_mapping(_SidebarPanel, bpy.types.Panel):
+    bl_label = "Rig Mapping"
+    bl_parent_id = "TRAJEVAE_PT_main"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    @classmethod
+    def poll(cls, context):
+        return _armature(context) is not None
+
+    def draw(self, context):
+        armature = _armature(context)
+        _, detected = rig_state.detected(armature)
+        layout = self.layout
+        layout.label(text="Empty fields use the detected bone")
+        for joint in skeleton.JOINT_NAMES:
+            row = layout.row(align=True)
+            row.prop_search(armature.trajevae.mapping, joint, armature.data, "bones", text=joint)
+            if not getattr(armature.trajevae.mapping, joint):
+                row.label(text=detected[joint] or "-")
+
+
+CLASSES = (TRAJEVAE_UL_bindings, TRAJEVAE_UL_variants, TRAJEVAE_PT_main, TRAJEVAE_PT_mapping)
+register, unregister = bpy.utils.register_classes_factory(CLASSES)
