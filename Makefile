@@ -3,7 +3,7 @@ PYTHON ?= python3.11
 VENV := .venv
 PY := $(VENV)/bin/python
 
-.PHONY: setup demo test bench-data bench-model train evaluate clean
+.PHONY: setup demo test bench-data bench-model bench-blender package train train-sampler evaluate clean
 
 $(VENV)/.installed: requirements.txt
 	$(PYTHON) -m venv $(VENV)
@@ -25,8 +25,21 @@ bench-data: setup
 bench-model: setup
 	PYTHONPATH=. $(PY) benchmarks/inference.py
 
+bench-blender: setup
+	$(PY) benchmarks/blender_generate.py
+
+# The extension zip, built and validated by Blender's own tool (out/trajevae-VERSION.zip).
+BLENDER_EXT = $(VENV)/lib/python3.11/site-packages/bpy/5.0/scripts/addons_core/bl_pkg/cli/blender_ext.py
+package: setup
+	mkdir -p out
+	$(PY) $(BLENDER_EXT) build --source-dir . --output-dir out
+	$(PY) $(BLENDER_EXT) validate out/trajevae-*.zip
+
 train: setup
 	$(PY) -m model_runtime.train
+
+train-sampler: setup
+	$(PY) -m model_runtime.train_sampler
 
 evaluate: setup
 	$(PY) -m model_runtime.evaluate --json evaluation.json

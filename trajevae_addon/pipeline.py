@@ -19,10 +19,13 @@ J = skeleton.JOINT_INDEX
 
 @dataclass
 class Report:
-    """What one generation did: the new actions and seconds per stage (read, inference, retarget, write)."""
+    """What one generation did: the new actions, seconds per stage (read, inference, retarget,
+    write), and what was keyed: frames (F,) and per variant {bone: matrix_basis (F, 4, 4)}."""
 
     actions: list = field(default_factory=list)
     seconds: dict = field(default_factory=dict)
+    frames: np.ndarray = None
+    bases: list = field(default_factory=list)
 
 
 def bound_joints(armature, bones):
@@ -61,13 +64,11 @@ def generate_variants(armature, count=5, seed=0, diversity=1.0, scene=None, prog
     fps = scene.render.fps / scene.render.fps_base
 
     current = scene.frame_current
-    scene.frame_set(int(frames[0]))
-    before = rig_state.apply_switches(armature, switches)
-    armature.update_tag()
-    bpy.context.view_layer.update()
+    if current != frames[0]:
+        scene.frame_set(int(frames[0]))
     depsgraph = bpy.context.evaluated_depsgraph_get()
     rig, joints = rig_state.read(armature, bones, depsgraph)
-    rig_state.apply_switches(armature, before)
+    before = rig_state.current_switches(armature, switches)
     floor = armature.matrix_world.translation.z
     placement = generation.Placement.for_pose(joints, floor, scene.unit_settings.scale_length)
     model_frames = generation.model_frames(len(frames), fps)
@@ -79,7 +80,8 @@ def generate_variants(armature, count=5, seed=0, diversity=1.0, scene=None, prog
         path = generation.curve_samples(curves.polyline(curve, depsgraph), model_frames, span)
         trajectories[:, J[joint]] = placement.to_model(path[1:])
         mask[:, J[joint]] = 1.0
-    scene.frame_set(current)
+    if current != frames[0]:
+        scene.frame_set(current)
     report.seconds["read"] = time.perf_counter() - clock
     progress(0.1)
 
@@ -93,17 +95,18 @@ def generate_variants(armature, count=5, seed=0, diversity=1.0, scene=None, prog
 
     targets = rig_state.to_armature_space(armature, world)
     variants.record_original(armature, before)
-    retarget_seconds = write_seconds = 0.0
-    numbered = len(armature.trajevae.variants) + 1
-    for index in range(count):
-        clock = time.perf_counter()
-        bases = retarget.bone_bases(rig, retarget.joint_deltas(rig, targets[index]))
-        retarget_seconds += time.perf_counter() - clock
-        clock = time.perf_counter()
-        report.actions.append(actions.write(armature, f"{armature.name} variant {numbered + index:02d}", frames, bases, bones["Hip"],
-                                            switches))
-        write_seconds += time.perf_counter() - clock
+    clock = time.perf_counter()  # all variants in one batch of count x F frames
+    flat = retarget.bone_bases(rig, retarget.joint_deltas(rig, targets.reshape(-1, *targets.shape[2:])))
+    report.bases = [{bone: basis.reshape(count, len(frames), 4, 4)[index] for bone, basis in flat.items()}
+                    for index in range(count)]
+    retarget_seconds = time.perf_counter() - clock
+    clock, numbered = time.perf_counter(), len(armature.trajevae.variants) + 1
+    for index, bases in enumerate(report.bases):
+        report.actions.append(actions.write(armature, f"{armature.name} variant {numbered + index:02d}", frames,
+                                            bases, bones["Hip"], switches))
         progress(0.5 + 0.5 * (index + 1) / count)
+    write_seconds = time.perf_counter() - clock
     report.seconds["retarget"], report.seconds["write"] = retarget_seconds, write_seconds
+    report.frames = frames
     variants.add(armature, report.actions)
     return report

@@ -38,15 +38,16 @@ def checked_mapping(armature):
     return bones
 
 
+def current_switches(armature, values):
+    """The rig's present values of the switches named in ``values`` {(pose bone, property): value}."""
+    return {(bone, prop): armature.pose.bones[bone][prop] for bone, prop in values
+            if bone in armature.pose.bones and prop in armature.pose.bones[bone]}
+
+
 def apply_switches(armature, values):
-    """Set rig switches {(pose bone, property): value}; returns the values they had."""
-    before = {}
-    for (bone, prop), value in values.items():
-        pose_bone = armature.pose.bones.get(bone)
-        if pose_bone is not None and prop in pose_bone:
-            before[(bone, prop)] = pose_bone[prop]
-            pose_bone[prop] = value
-    return before
+    """Set rig switches {(pose bone, property): value}."""
+    for (bone, prop), value in current_switches(armature, values).items():
+        armature.pose.bones[bone][prop] = values[(bone, prop)]
 
 
 def switches_to_json(values):
@@ -71,7 +72,8 @@ def _drivers(armature, keyed):
 def read(armature, bones, depsgraph):
     """The rig as the retargeter needs it (armature space) and its joints in world space (17, 3).
 
-    Call with the scene at the start frame; rig switches must already be set.
+    Call with the scene at the start frame. Keyed bones are read as evaluated
+    (on a Rigify rig the FK controls, whatever the IK/FK switches show).
     """
     evaluated = armature.evaluated_get(depsgraph)
     pose = evaluated.pose.bones

@@ -1,0 +1,53 @@
+"""The extension zip, built and validated by Blender's own tool, installs and works."""
+
+import os
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import bpy
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+BLENDER_EXT = Path(bpy.utils.system_resource('SCRIPTS')) / "addons_core" / "bl_pkg" / "cli" / "blender_ext.py"
+
+INSTALL_SCRIPT = """
+import sys, bpy
+bpy.ops.extensions.package_install_files(filepath=sys.argv[1], repo="user_default", enable_on_install=True)
+extension = sys.modules["bl_ext.user_default.trajevae"]
+api = extension.trajevae_addon.api
+rig = extension.trajevae_addon.mannequin.build_mannequin(bpy.context.scene)
+bpy.context.scene.frame_end = 20
+mapping = api.map_rig(rig)
+made = api.generate_variants(rig, n=2)
+print("API", api.__name__, mapping["LWrist"], len(made), hasattr(bpy.types, "TRAJEVAE_OT_generate"))
+"""
+
+
+@pytest.fixture(scope="module")
+def package(tmp_path_factory):
+    out = tmp_path_factory.mktemp("package")
+    subprocess.run([sys.executable, str(BLENDER_EXT), "build", "--source-dir", str(ROOT), "--output-dir", str(out)],
+                   check=True, capture_output=True)
+    (zip_path,) = out.glob("trajevae-*.zip")
+    return zip_path
+
+
+def test_blender_validates_the_zip_and_it_holds_the_runtime_not_the_tests(package):
+    result = subprocess.run([sys.executable, str(BLENDER_EXT), "validate", str(package)], capture_output=True,
+                            text=True)
+    assert result.returncode == 0, result.stdout + result.stderr
+    names = zipfile.ZipFile(package).namelist()
+    for needed in ("blender_manifest.toml", "__init__.py", "trajevae_addon/api.py", "model_runtime/numpy_model.py",
+                   "model_runtime/generation.py", "assets/trajevae.npz"):
+        assert needed in names
+    assert not [n for n in names if n.startswith(("tests/", "benchmarks/", ".")) or "__pycache__" in n]
+
+
+def test_installed_extension_enables_and_its_api_generates(package, tmp_path):
+    environment = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path))
+    result = subprocess.run([sys.executable, "-c", INSTALL_SCRIPT, str(package)], capture_output=True, text=True,
+                            env=environment, cwd=tmp_path, timeout=300)
+    line = next((l for l in result.stdout.splitlines() if l.startswith("API ")), None)
+    assert line == "API bl_ext.user_default.trajevae.trajevae_addon.api LWrist 2 True", result.stdout + result.stderr
