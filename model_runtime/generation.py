@@ -75,13 +75,15 @@ def _window(model, initial, trajectories, mask, count, rng, diversity, sampler):
     return motion + shift[:, None, None]
 
 
-def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, sampler=None, overlap=10):
+def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, sampler=None, overlap=10,
+             progress=None):
     """``count`` motions (count, 1 + T, 17, 3) in the model frame, initial pose first.
 
     initial (17, 3); trajectories (T, 17, 3) and mask (T, 17) of the joints
     given on each frame after the initial one. The first window draws
     ``count`` latents (with the diverse sampler when given); later windows
-    continue each motion with one prior sample.
+    continue each motion with one prior sample. ``progress(fraction)`` is
+    called after each window (it may raise to stop the work).
     """
     window = model.frames
     total = len(trajectories)
@@ -106,15 +108,21 @@ def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, samp
         motion[:, done + 1:start + frames + 1] = new[:, carried:frames]
         done = start + frames
         start = done - overlap
+        if progress is not None:
+            progress(done / total)
     return motion
 
 
-def curve_samples(points, frames, span):
-    """Positions (1 + frames, 3) along a polyline (P, 3), uniform in arc length.
+def curve_samples(points, frames, span, times=None):
+    """Positions (1 + frames, 3) along a polyline (P, 3), uniform in arc length, or in drawing
+    time when the points' ``times`` (P,) are given.
 
-    Frame m sits at arc fraction min(m / span, 1): ``span`` (model frames,
-    possibly fractional) is where the scene's last frame falls.
+    Frame m sits at fraction min(m / span, 1) of the way: ``span`` (model
+    frames, possibly fractional) is where the scene's last frame falls.
     """
-    lengths = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+    if times is not None:
+        lengths = np.asarray(times, dtype=np.float64) - times[0]
+    else:
+        lengths = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
     wanted = np.clip(np.arange(frames + 1) / max(span, 1e-9), 0.0, 1.0) * lengths[-1]
     return np.stack([np.interp(wanted, lengths, points[:, axis]) for axis in range(3)], axis=-1)

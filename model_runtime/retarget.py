@@ -217,6 +217,26 @@ def _straight_hinge(rig, upper):
     return start[J["RShoulder"]] - start[J["LShoulder"]]
 
 
+def achieved_joints(rig, deltas):
+    """Where the retargeted rig puts each mapped joint: (F, 17, 3), NaN for joints without a bone."""
+    frames = len(next(iter(deltas.values())))
+    out = np.full((frames, len(rig.joints), 3), np.nan)
+    for joint, delta in deltas.items():
+        out[:, J[joint]] = _apply(delta, rig.joints[J[joint]])
+    return out
+
+
+def reachable(rig, achieved, targets, joint):
+    """Frames (F,) on which the rig's limb can put ``joint`` on its target: the target lies within
+    the limb's length of the limb's (achieved) root. Joints outside the limbs always count."""
+    for limb in LIMBS:
+        if joint in limb[1:]:
+            chain = limb[: limb.index(joint) + 1]
+            length = sum(np.linalg.norm(rig.joints[J[b]] - rig.joints[J[a]]) for a, b in zip(chain, chain[1:]))
+            return np.linalg.norm(targets - achieved[:, J[chain[0]]], axis=-1) <= 0.999 * length
+    return np.ones(len(targets), dtype=bool)
+
+
 def _rigid_inverse(delta):
     """Inverses of rigid transforms (..., 4, 4), without a general matrix inverse."""
     inverse = np.zeros_like(delta)

@@ -210,3 +210,19 @@ def test_register_unregister_register_leaves_nothing_behind(registered):
     assert not [name for name in dir(bpy.types) if name.startswith("TRAJEVAE_")]
     trajevae_addon.register()
     assert hasattr(bpy.types.Object, "trajevae")
+
+
+def test_child_sized_rig_and_a_stored_mapping_override(registered, tmp_path):
+    scene = registered
+    rig = blender_rigs.mannequin_rig(scene)
+    rig.scale = (0.65, 0.65, 0.65)
+    _bind(scene, rig, ("RWrist", "LFoot"), scale=0.65)
+    api.generate_variants(rig, n=2, seed=5)
+    errors = _curve_errors(scene, rig, {})
+    print(f"child-sized mannequin (x0.65), 2 curves: mean curve error (m) {errors}")
+    assert all(error < 0.05 * 0.65 for error in errors.values())
+    rig.trajevae.mapping.Head = "Neck"  # the artist's pick wins over detection and is saved
+    path, name = str(tmp_path / "mapping.blend"), rig.name
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    assert api.map_rig(bpy.data.objects[name])["Head"] == "Neck"

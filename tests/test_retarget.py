@@ -52,6 +52,9 @@ def test_retarget_puts_hands_and_feet_on_their_targets_with_rig_lengths(motion):
     for joint in PARENTS:  # everything else close, bones never stretched
         error = np.linalg.norm(pose[joint][:, :3, 3] - targets[:, JOINT_INDEX[joint]], axis=-1)
         assert error.mean() < 0.06, joint
+    achieved = retarget.achieved_joints(rig, retarget.joint_deltas(rig, targets))
+    for joint in PARENTS:
+        np.testing.assert_allclose(achieved[:, JOINT_INDEX[joint]], pose[joint][:, :3, 3], atol=1e-6)
     thigh = np.linalg.norm(pose["RKnee"][:, :3, 3] - pose["RHip"][:, :3, 3], axis=-1)
     np.testing.assert_allclose(thigh, np.linalg.norm(motion[0, JOINT_INDEX["RKnee"]] - motion[0, JOINT_INDEX["RHip"]]),
                                rtol=1e-6)

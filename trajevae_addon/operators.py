@@ -1,5 +1,7 @@
 """Operators: generate, cycle, keep and discard variants; bind and unbind curves."""
 
+import threading
+
 import bpy
 from bpy.props import IntProperty
 
@@ -18,28 +20,88 @@ class _ArmatureOperator:
 
 
 class TRAJEVAE_OT_generate(_ArmatureOperator, bpy.types.Operator):
-    """Generate N full-body motions over the scene frame range that follow the bound curves"""
+    """Generate N full-body motions over the scene frame range that follow the bound curves and keys.
+    The networks run in a worker while the interface stays live; Esc cancels"""
 
     bl_idname = "trajevae.generate"
     bl_label = "Generate Variants"
     bl_options = {'REGISTER', 'UNDO'}
 
-    def execute(self, context):
+    _job = None
+    _worker = None
+    _error = None
+    _timer = None
+
+    def _start(self, context):
         armature = _armature(context)
         settings = armature.trajevae
-        window_manager = context.window_manager
-        window_manager.progress_begin(0.0, 1.0)
         try:
-            report = pipeline.generate_variants(armature, settings.variant_count, settings.seed,
-                                                settings.diversity, context.scene, window_manager.progress_update)
+            self._job = pipeline.prepare(armature, settings.variant_count, settings.seed, settings.diversity,
+                                         context.scene)
         except (rig_state.RigError, curves.CurveError) as error:
             self.report({'ERROR'}, str(error))
-            return {'CANCELLED'}
-        finally:
-            window_manager.progress_end()
-        total = sum(report.seconds.values())
-        self.report({'INFO'}, f"{len(report.actions)} variants in {total:.2f} s")
+            return False
+        return True
+
+    def _finish(self, context):
+        report = pipeline.finish(self._job, _armature(context))
+        errors = ", ".join(f"{100 * e:.1f}" for e in report.curve_error_m)
+        self.report({'INFO'}, f"{len(report.actions)} variants in {sum(report.seconds.values()):.2f} s"
+                              + (f"; curve error (cm): {errors}" if self._job.curve_paths else ""))
         return {'FINISHED'}
+
+    def execute(self, context):  # scripts and headless runs: synchronous
+        if not self._start(context):
+            return {'CANCELLED'}
+        pipeline.infer(self._job)
+        return self._finish(context)
+
+    def invoke(self, context, event):
+        if not self._start(context):
+            return {'CANCELLED'}
+
+        def work():
+            try:
+                pipeline.infer(self._job)
+            except pipeline.Cancelled:
+                pass
+            except Exception as error:  # shown to the artist by modal()
+                self._error = error
+
+        self._worker = threading.Thread(target=work, daemon=True)
+        self._worker.start()
+        window_manager = context.window_manager
+        self._timer = window_manager.event_timer_add(0.1, window=context.window)
+        window_manager.progress_begin(0.0, 1.0)
+        window_manager.modal_handler_add(self)
+        return {'RUNNING_MODAL'}
+
+    def modal(self, context, event):
+        window_manager = context.window_manager
+        if event.type == 'ESC':
+            self._job.cancel_event.set()
+            self._worker.join()
+            self._stop(context)
+            self.report({'INFO'}, "generation cancelled; nothing was written")
+            return {'CANCELLED'}
+        if event.type != 'TIMER':
+            return {'PASS_THROUGH'}
+        window_manager.progress_update(self._job.progress)
+        context.workspace.status_text_set(f"TrajeVAE: generating {self._job.count} variants "
+                                          f"{100 * self._job.progress:.0f}% (Esc to cancel)")
+        if self._worker.is_alive():
+            return {'RUNNING_MODAL'}
+        self._stop(context)
+        if self._error is not None:
+            self.report({'ERROR'}, f"generation failed: {self._error}")
+            return {'CANCELLED'}
+        return self._finish(context)
+
+    def _stop(self, context):
+        window_manager = context.window_manager
+        window_manager.event_timer_remove(self._timer)
+        window_manager.progress_end()
+        context.workspace.status_text_set(None)
 
 
 class TRAJEVAE_OT_step_variant(_ArmatureOperator, bpy.types.Operator):

@@ -39,6 +39,10 @@ class TRAJEVAE_PG_binding(PropertyGroup):
 
 class TRAJEVAE_PG_variant(PropertyGroup):
     action: PointerProperty(name="Action", type=bpy.types.Action)
+    curve_error_m: FloatProperty(name="Curve error", unit='LENGTH',
+                                 description="Mean distance of the bound joints to their curves")
+    difference_m: FloatProperty(name="Difference", unit='LENGTH',
+                                description="Mean joint distance to the nearest other variant")
 
 
 class TRAJEVAE_PG_settings(PropertyGroup):

@@ -20,7 +20,9 @@ class TRAJEVAE_UL_bindings(bpy.types.UIList):
 
 class TRAJEVAE_UL_variants(bpy.types.UIList):
     def draw_item(self, context, layout, data, item, icon, active_data, active_property, index=0, flt_flag=0):
-        layout.label(text=item.action.name if item.action else "(deleted)", icon='ACTION')
+        row = layout.row()
+        row.label(text=item.action.name if item.action else "(deleted)", icon='ACTION')
+        row.label(text=f"curve {100 * item.curve_error_m:.1f} cm  apart {100 * item.difference_m:.0f} cm")
 
 
 class _SidebarPanel:

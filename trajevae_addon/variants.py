@@ -30,12 +30,14 @@ def record_original(armature, switch_values):
     settings.has_original = True
 
 
-def add(armature, new_actions):
-    """Append generated actions to the list and show the first of them."""
+def add(armature, new_actions, curve_errors, differences):
+    """Append generated actions (with their curve error and distance to the nearest other variant,
+    metres) to the list and show the first of them."""
     settings = armature.trajevae
     first = len(settings.variants)
-    for action in new_actions:
-        settings.variants.add().action = action
+    for action, error, difference in zip(new_actions, curve_errors, differences):
+        item = settings.variants.add()
+        item.action, item.curve_error_m, item.difference_m = action, error, difference
     settings.active_variant = first  # its update callback assigns the action
 
 

@@ -1,0 +1,121 @@
+"""Artist workflow with real bpy: keys as constraints, long shots, cancelling, per-variant feedback."""
+
+import threading
+
+import bpy
+import numpy as np
+import pytest
+from mathutils import Quaternion
+
+import blender_rigs
+import trajevae_addon
+from model_runtime.skeleton import JOINT_INDEX
+from trajevae_addon import api, pipeline, rig_state
+
+
+@pytest.fixture(autouse=True)
+def scene():
+    scene = blender_rigs.fresh_scene()
+    trajevae_addon.register()
+    yield scene
+    trajevae_addon.unregister()
+
+
+def _world_joints(rig):
+    return rig_state.read(rig, api.map_rig(rig), bpy.context.evaluated_depsgraph_get())[1]
+
+
+def test_keys_constrain_their_joints_on_their_frames_only(scene):
+    rig = blender_rigs.mannequin_rig(scene)
+    pose = rig.pose.bones
+    for bone in ("Hip", "LShoulder", "LElbow", "RHip", "RKnee"):  # a blocking key at frame 1
+        pose[bone].keyframe_insert("rotation_quaternion", frame=1)
+    pose["Hip"].keyframe_insert("location", frame=1)
+    pose["LShoulder"].rotation_quaternion = Quaternion((0, 1, 0), -1.2)  # arm raised sideways
+    pose["LElbow"].rotation_quaternion = Quaternion((1, 0, 0), 0.8)
+    pose["RHip"].rotation_quaternion = Quaternion((1, 0, 0), 0.5)  # right leg lifted
+    pose["RKnee"].rotation_quaternion = Quaternion((1, 0, 0), 0.9)
+    pose["Hip"].location = (0.0, 0.05, -0.1)
+    for bone in ("Hip", "LShoulder", "LElbow", "RHip", "RKnee"):
+        pose[bone].keyframe_insert("rotation_quaternion", frame=40)
+    pose["Hip"].keyframe_insert("location", frame=40)
+    scene.frame_set(40)
+    keyed = _world_joints(rig)
+    scene.frame_set(1)
+    made = api.generate_variants(rig, n=3, seed=0)
+    for action in made:
+        api.set_active_variant(rig, action)
+        scene.frame_set(40)
+        got = _world_joints(rig)
+        for joint in ("LWrist", "RFoot", "RKnee", "Hip"):
+            error = np.linalg.norm(got[JOINT_INDEX[joint]] - keyed[JOINT_INDEX[joint]])
+            assert error < 0.01, (action.name, joint, error)
+    at_20 = []
+    for action in made:
+        api.set_active_variant(rig, action)
+        scene.frame_set(20)
+        at_20.append(_world_joints(rig)[JOINT_INDEX["LWrist"]])
+    assert max(np.linalg.norm(a - b) for a in at_20 for b in at_20) > 0.02  # free between the keys
+
+
+def test_a_300_frame_shot_has_no_seams_and_curves_are_followed_within_a_centimetre(scene):
+    scene.frame_start, scene.frame_end = 1, 300
+    scene.render.fps = 24
+    rig = blender_rigs.mannequin_rig(scene)
+    bones = api.map_rig(rig)
+    start = _world_joints(rig)[JOINT_INDEX["RWrist"]]
+    t = np.linspace(0.0, 1.0, 40)[:, None]
+    path = start + np.column_stack([0.3 * np.sin(2 * np.pi * t[:, 0]), -1.5 * t[:, 0], 0.2 * np.sin(np.pi * t[:, 0])])
+    api.bind_curve(rig, bones["RWrist"], blender_rigs.curve(scene, "long path", path))
+    job = pipeline.prepare(rig, 3, 0)
+    pipeline.infer(job)
+    motion = job.motion  # (3, 300, 17, 3) world, scene rate
+    speed = np.linalg.norm(np.diff(motion, axis=1), axis=-1).mean(axis=-1)  # (3, 299) mean joint step
+    jump = np.abs(np.diff(speed, axis=1))  # change of speed from frame to frame
+    window, overlap = 60, 10
+    joins_model = np.arange(window, len(job.trajectories), window - overlap)
+    joins = np.round(joins_model * 24 / 30).astype(int)
+    at_joins = jump[:, np.clip(joins - 1, 0, jump.shape[1] - 1)].mean()
+    print(f"300 frames: speed change at joins {at_joins * 1000:.2f} mm/frame vs {jump.mean() * 1000:.2f} overall "
+          f"(95th percentile {np.percentile(jump, 95) * 1000:.2f})")
+    assert len(joins) >= 4
+    assert at_joins < np.percentile(jump, 95)
+    report = pipeline.finish(job, rig)
+    print("curve error per variant where reachable (cm):", [round(100 * e, 2) for e in report.curve_error_m],
+          "share out of reach:", [round(s, 3) for s in report.out_of_reach])
+    assert all(error < 0.01 for error in report.curve_error_m)
+    assert all(share < 0.5 for share in report.out_of_reach)
+    assert all(difference > 0.02 for difference in report.difference_m)
+
+
+def test_cancelling_mid_run_writes_nothing(scene):
+    scene.frame_start, scene.frame_end = 1, 300
+    rig = blender_rigs.mannequin_rig(scene)
+    actions_before = set(bpy.data.actions)
+    job = pipeline.prepare(rig, 5, 0)
+    outcome = []
+
+    def work():
+        try:
+            pipeline.infer(job, on_progress=lambda fraction: job.cancel_event.set())
+            outcome.append("finished")
+        except pipeline.Cancelled:
+            outcome.append("cancelled")
+
+    worker = threading.Thread(target=work)
+    worker.start()
+    worker.join(timeout=120)
+    assert outcome == ["cancelled"] and 0 < job.progress < 0.9
+    assert job.motion is None
+    assert set(bpy.data.actions) == actions_before and not len(rig.trajevae.variants)
+
+
+def test_a_one_frame_range_or_no_armature_is_a_clear_error(scene):
+    scene.frame_end = scene.frame_start
+    rig = blender_rigs.mannequin_rig(scene)
+    with pytest.raises(rig_state.RigError, match="single frame"):
+        pipeline.prepare(rig)
+    with pytest.raises(rig_state.RigError, match="select an armature"):
+        pipeline.prepare(None)
+    bpy.context.view_layer.objects.active = None
+    assert not bpy.ops.trajevae.generate.poll()
