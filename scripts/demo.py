@@ -30,6 +30,7 @@ from trajevae_addon.runtime import skeleton  # noqa: E402
 
 FPS, FIRST, LAST = 30, 1, 90
 SPACING = 1.2  # metres between the figures in the image
+VIEW = np.array([-0.5, -1.0, 0.22])  # toward the camera: in front of the figures, on their right, a little above
 STROBE = ((1, 0.18), (45, 0.4), (90, 1.0))  # (frame, opacity) of each pose shown per figure
 COLOURS = ((0.80, 0.25, 0.20), (0.90, 0.60, 0.15), (0.30, 0.65, 0.30), (0.20, 0.45, 0.85), (0.60, 0.30, 0.75))
 
@@ -111,9 +112,10 @@ def posed_copy(scene, body, frame, name, location, mat):
 def render_side_by_side(scene, rig, curve, variant_actions, path):
     """Replace the scene's contents in memory by a line-up of the variants and render it (not saved)."""
     body = next(child for child in rig.children if child.type == 'MESH')
+    row = np.array([-VIEW[1], VIEW[0], 0.0]) / np.hypot(VIEW[0], VIEW[1])  # across the view, on the floor
     for index, action in enumerate(variant_actions):
         api.set_active_variant(rig, action)
-        offset = (index * SPACING, 0.0, 0.0)
+        offset = index * SPACING * row
         for frame, alpha in STROBE:
             posed_copy(scene, body, frame, f"Variant {index + 1} f{frame}", offset,
                        material(f"Figure {index + 1} {frame}", COLOURS[index % len(COLOURS)], alpha))
@@ -139,9 +141,8 @@ def render_side_by_side(scene, rig, curve, variant_actions, path):
 
     camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     camera.data.type, camera.data.ortho_scale = 'ORTHO', width + 2.0
-    target = np.array([width / 2.0, -0.15, 0.85])
-    direction = np.array([-0.5, -1.0, 0.25])  # from the target toward the camera: front, a little left and above
-    camera.location = target + 12.0 * direction / np.linalg.norm(direction)
+    target = width / 2.0 * row + np.array([0.0, -0.15, 0.85])
+    camera.location = target + 12.0 * VIEW / np.linalg.norm(VIEW)
     camera.rotation_euler = _look_at(camera.location, target)
     scene.collection.objects.link(camera)
     scene.camera = camera
@@ -155,6 +156,7 @@ def render_side_by_side(scene, rig, curve, variant_actions, path):
     scene.render.image_settings.file_format = 'PNG'
     scene.render.image_settings.color_mode = 'RGB'
     scene.render.image_settings.compression = 100
+    scene.render.dither_intensity = 0.0  # no dither noise: flat areas compress (README image < 400 KB)
     scene.render.filepath = str(path)
     try:
         bpy.ops.render.render(write_still=True)

@@ -119,3 +119,53 @@ def test_a_one_frame_range_or_no_armature_is_a_clear_error(scene):
         pipeline.prepare(None)
     bpy.context.view_layer.objects.active = None
     assert not bpy.ops.trajevae.generate.poll()
+
+
+def _grease_pencil(scene, points, times):
+    data = bpy.data.grease_pencils.new("stroke")
+    drawing = data.layers.new("Lines").frames.new(1).drawing
+    drawing.add_strokes([len(points)])
+    drawing.attributes["position"].data.foreach_set("vector", np.asarray(points, np.float32).ravel())
+    for point, time in zip(drawing.strokes[0].points, times):
+        point.delta_time = time
+    obj = bpy.data.objects.new("stroke", data)
+    scene.collection.objects.link(obj)
+    return obj
+
+
+def test_grease_pencil_stroke_followed_at_its_drawing_speed(scene):
+    scene.frame_end = 61
+    rig = blender_rigs.mannequin_rig(scene)
+    start = _world_joints(rig)[JOINT_INDEX["RWrist"]]
+    points = start + np.linspace(0.0, 1.0, 21)[:, None] * [0.0, -0.4, 0.3]
+    times = np.concatenate([np.linspace(0.0, 1.5, 11), np.linspace(1.6, 2.0, 10)])  # slow, then fast
+    stroke = _grease_pencil(scene, points, times)
+    api.bind_curve(rig, "RWrist", stroke)
+    timed = pipeline.prepare(rig, 2, 0).curve_paths["RWrist"]
+    api.bind_curve(rig, "RWrist", stroke, use_drawing_speed=False)
+    even = pipeline.prepare(rig, 2, 0).curve_paths["RWrist"]
+    travelled = lambda path: np.linalg.norm(path[30] - start) / np.linalg.norm(points[-1] - start)
+    assert abs(travelled(even) - 0.5) < 0.02
+    assert abs(travelled(timed) - (1.0 / 2.0 * 2.0 / 1.5) * 0.5) < 0.05  # half the time, a third of the way
+    np.testing.assert_allclose(timed[-1], points[-1], atol=1e-6)
+    api.bind_curve(rig, "RWrist", stroke)
+    report = pipeline.generate_variants(rig, 2)
+    print("grease pencil stroke: curve error (cm)", [round(100 * e, 2) for e in report.curve_error_m])
+    assert all(error < 0.01 for error in report.curve_error_m)
+
+
+def test_follow_path_constraint_counts_as_a_binding_and_is_restored(scene):
+    rig = blender_rigs.mannequin_rig(scene)
+    start = _world_joints(rig)[JOINT_INDEX["LWrist"]]
+    path = blender_rigs.curve(scene, "constraint path", start + np.linspace(0, 1, 8)[:, None] * [0.1, -0.3, 0.2])
+    constraint = rig.pose.bones["LWrist"].constraints.new('FOLLOW_PATH')
+    constraint.target = path
+    job = pipeline.prepare(rig, 2, 0)
+    assert job.mask[:, JOINT_INDEX["LWrist"]].all()
+    report = pipeline.finish(pipeline.infer(job) or job, rig)
+    assert all(error < 0.01 for error in report.curve_error_m)
+    scene.frame_set(10)
+    assert constraint.influence == 0.0  # the variant plays without the constraint pulling twice
+    api.restore_original(rig)
+    scene.frame_set(11)
+    assert constraint.influence == 1.0

@@ -31,7 +31,7 @@ def _curve(channelbag, path, index, group, frames, values):
 
 def write(armature, name, frames, bases, root_bone, switches):
     """A new Action (fake user set) with keys on ``frames`` (F,) for each bone's matrix_basis (F, 4, 4):
-    rotation for every bone, location for the root; rig switches held at their values."""
+    rotation for every bone, location for the root; switches {data path: value} held."""
     action = bpy.data.actions.new(name)
     action.use_fake_user = True
     slot = action.slots.new(id_type='OBJECT', name=slot_name(armature))
@@ -47,7 +47,6 @@ def write(armature, name, frames, bases, root_bone, switches):
         for prop, channel_values in channels:
             for index in range(channel_values.shape[1]):
                 _curve(channelbag, pose_bone.path_from_id(prop), index, bone, frames, channel_values[:, index])
-    for (bone, prop), value in switches.items():
-        path = armature.pose.bones[bone].path_from_id(f'["{prop}"]')
-        _curve(channelbag, path, 0, bone, frames[:1], np.array([value]))
+    for path, value in switches.items():  # e.g. 'pose.bones["thigh_parent.L"]["IK_FK"]'
+        _curve(channelbag, path, 0, path.split('"')[1], frames[:1], np.array([value]))
     return action

@@ -23,16 +23,17 @@ def map_rig(armature):
     return rig_state.mapping(armature)
 
 
-def bind_curve(armature, bone_name, curve_object):
-    """Make the joint carried by ``bone_name`` follow ``curve_object`` (replaces an earlier binding)."""
+def bind_curve(armature, bone_name, curve_object, use_drawing_speed=True):
+    """Make the joint carried by ``bone_name`` follow a Curve object or a Grease Pencil object's last
+    stroke (at its drawing speed unless told not to); replaces an earlier binding of the bone."""
     if bone_name not in armature.pose.bones:
         raise ValueError(f"{armature.name!r} has no bone {bone_name!r}")
-    if curve_object is not None and curve_object.type != 'CURVE':
-        raise ValueError(f"{curve_object.name!r} is a {curve_object.type.lower()}, not a curve")
+    if curve_object is not None and curve_object.type not in {'CURVE', 'GREASEPENCIL'}:
+        raise ValueError(f"{curve_object.name!r} is a {curve_object.type.lower()}, not a curve or grease pencil")
     bindings = armature.trajevae.bindings
     existing = next((b for b in bindings if b.bone == bone_name), None)
     binding = existing or bindings.add()
-    binding.bone, binding.curve = bone_name, curve_object
+    binding.bone, binding.curve, binding.use_drawing_speed = bone_name, curve_object, use_drawing_speed
 
 
 def unbind(armature, bone_name):

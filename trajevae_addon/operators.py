@@ -151,18 +151,19 @@ class TRAJEVAE_OT_discard_variants(_ArmatureOperator, bpy.types.Operator):
 
 
 class TRAJEVAE_OT_bind_curve(_ArmatureOperator, bpy.types.Operator):
-    """Make the active bone follow the selected curve object"""
+    """Make the active bone follow the selected curve object or grease pencil stroke"""
 
     bl_idname = "trajevae.bind_curve"
-    bl_label = "Bind Selected Curve"
+    bl_label = "Bind Selected Path"
     bl_options = {'REGISTER', 'UNDO'}
 
     def execute(self, context):
         armature = _armature(context)
         bone = armature.data.bones.active
-        curve = next((obj for obj in context.selected_objects if obj.type == 'CURVE'), None)
+        curve = next((obj for obj in context.selected_objects if obj.type in {'CURVE', 'GREASEPENCIL'}), None)
         if bone is None or curve is None:
-            self.report({'ERROR'}, "select a curve, then the armature with the bone to bind active")
+            self.report({'ERROR'}, "select a curve or grease pencil, then the armature with the bone to bind "
+                                   "active")
             return {'CANCELLED'}
         api.bind_curve(armature, bone.name, curve)
         return {'FINISHED'}

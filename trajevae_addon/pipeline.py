@@ -69,8 +69,12 @@ class Report:
     difference_m: list = field(default_factory=list)
 
 
-def bound_curves(armature, bones):
-    """{joint: curve object} of the armature's bindings, checked against its mapping."""
+PATH_CONSTRAINTS = {'FOLLOW_PATH', 'CLAMP_TO'}
+
+
+def bindings(armature, bones):
+    """{joint: (path object, use drawing speed)}: the armature's bindings, then any Follow Path or
+    Clamp To constraint of a mapped bone (a native way to say "this bone follows this path")."""
     joint_of = {bone: joint for joint, bone in bones.items() if bone}
     out = {}
     for binding in armature.trajevae.bindings:
@@ -80,8 +84,27 @@ def bound_curves(armature, bones):
         if joint is None:
             raise rig_state.RigError(f"bone {binding.bone!r} is bound to {binding.curve.name!r} but carries no "
                                      "joint; bind a mapped bone (hand, foot, ...)")
-        out[joint] = binding.curve
+        out[joint] = (binding.curve, binding.use_drawing_speed)
+    for joint, bone in bones.items():
+        if bone and joint not in out:
+            constraint = next(iter(path_constraints(armature, bone)), None)
+            if constraint is not None:
+                out[joint] = (constraint.target, True)
     return out
+
+
+def path_constraints(armature, bone):
+    """The bone's active Follow Path / Clamp To constraints that target a curve."""
+    return [c for c in armature.pose.bones[bone].constraints
+            if c.type in PATH_CONSTRAINTS and not c.mute and c.influence > 0 and c.target is not None
+            and c.target.type == 'CURVE']
+
+
+def muted_path_constraints(armature, bones):
+    """{data path: 0.0} turning off the path constraints that served as bindings, so they do not
+    pull the generated motion a second time (restored with the artist's action)."""
+    return {c.path_from_id("influence"): 0.0 for bone in bones.values() if bone
+            for c in path_constraints(armature, bone)}
 
 
 def scene_frames(scene):
@@ -154,7 +177,9 @@ def prepare(armature, count=5, seed=0, diversity=1.0, scene=None):
     if armature is None or armature.type != 'ARMATURE':
         raise rig_state.RigError("select an armature to generate motion for")
     bones = rig_state.checked_mapping(armature)
-    switches = rig_mapping.switches(rig_state.detected(armature)[0])
+    switches = {**rig_mapping.switches(rig_state.detected(armature)[0]), **muted_path_constraints(armature, bones)}
+    switches_before = rig_state.current_switches(armature, switches)
+    switches = {path: value for path, value in switches.items() if path in switches_before}
     frames = scene_frames(scene)
     fps = scene.render.fps / scene.render.fps_base
     metres_per_unit = scene.unit_settings.scale_length
@@ -187,13 +212,15 @@ def prepare(armature, count=5, seed=0, diversity=1.0, scene=None):
                 trajectories[step - 1, J[joint]] = placement.to_model(poses[frame][1][J[joint]])
                 mask[step - 1, J[joint]] = 1.0
     curve_paths = {}
-    for joint, curve in bound_curves(armature, bones).items():
-        points = curves.polyline(curve, depsgraph)
-        trajectories[:, J[joint]] = placement.to_model(generation.curve_samples(points, model_frames, span)[1:])
+    for joint, (obj, use_drawing_speed) in bindings(armature, bones).items():
+        points, times = curves.path(obj, depsgraph, int(frames[0]))
+        times = times if use_drawing_speed else None
+        trajectories[:, J[joint]] = placement.to_model(
+            generation.curve_samples(points, model_frames, span, times)[1:])
         mask[:, J[joint]] = 1.0
-        curve_paths[joint] = generation.curve_samples(points, len(frames) - 1, len(frames) - 1)
-    return Job(armature.name, count, seed, diversity, bones, switches,
-               rig_state.current_switches(armature, switches), frames, fps, metres_per_unit, rig,
+        curve_paths[joint] = generation.curve_samples(points, len(frames) - 1, len(frames) - 1, times)
+    return Job(armature.name, count, seed, diversity, bones, switches, switches_before, frames, fps,
+               metres_per_unit, rig,
                placement.to_model(joints), placement, trajectories, mask, curve_paths,
                np.linalg.inv(np.array(armature.matrix_world, dtype=np.float64)),
                seconds={"read": time.perf_counter() - clock})

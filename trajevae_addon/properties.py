@@ -8,8 +8,8 @@ from bpy.types import PropertyGroup
 from .runtime import skeleton
 
 
-def _is_curve(_, obj):
-    return obj.type == 'CURVE'
+def _is_path(_, obj):
+    return obj.type in {'CURVE', 'GREASEPENCIL'}
 
 
 def _switch_variant(settings, context):
@@ -30,11 +30,13 @@ TRAJEVAE_PG_joint_bones = type("TRAJEVAE_PG_joint_bones", (PropertyGroup,), {
 
 
 class TRAJEVAE_PG_binding(PropertyGroup):
-    """A curve that a bone's joint follows over the scene frame range."""
+    """A drawn path that a bone's joint follows over the scene frame range."""
 
-    bone: StringProperty(name="Bone", description="Pose bone that follows the curve")
-    curve: PointerProperty(name="Curve", type=bpy.types.Object, poll=_is_curve,
-                           description="Curve object followed from its first point, uniformly in arc length")
+    bone: StringProperty(name="Bone", description="Pose bone that follows the path")
+    curve: PointerProperty(name="Path", type=bpy.types.Object, poll=_is_path,
+                           description="Curve object or Grease Pencil stroke, followed from its first point")
+    use_drawing_speed: BoolProperty(name="Drawing speed", default=True,
+                                    description="Follow a stroke at the speed it was drawn (else evenly)")
 
 
 class TRAJEVAE_PG_variant(PropertyGroup):

@@ -29,7 +29,7 @@ class BlenderRigProfile:
     name: str
     bones: dict  # joint -> bone name
     signature: tuple
-    switches: dict = field(default_factory=dict)  # (pose bone, property) -> value while generated motion plays
+    switches: dict = field(default_factory=dict)  # data path -> value while generated motion plays
 
 
 def _sided(table):
@@ -55,9 +55,9 @@ _RIGIFY = BlenderRigProfile(
             "{s}Hip": "thigh_fk.{s}", "{s}Knee": "shin_fk.{s}", "{s}Foot": "foot_fk.{s}",
             "{s}Shoulder": "upper_arm_fk.{s}", "{s}Elbow": "forearm_fk.{s}", "{s}Wrist": "hand_fk.{s}"}),
     signature=("torso", "ORG-spine", "thigh_parent.L"),
-    switches={**{(f"{limb}_parent.{side}", prop): value for limb in ("thigh", "upper_arm") for side in "LR"
-                 for prop, value in (("IK_FK", 1.0), ("FK_limb_follow", 0.0))},
-              ("torso", "neck_follow"): 1.0, ("torso", "head_follow"): 1.0})
+    switches={**{f'pose.bones["{limb}_parent.{side}"]["{prop}"]': value for limb in ("thigh", "upper_arm")
+                 for side in "LR" for prop, value in (("IK_FK", 1.0), ("FK_limb_follow", 0.0))},
+              'pose.bones["torso"]["neck_follow"]': 1.0, 'pose.bones["torso"]["head_follow"]': 1.0})
 _METARIG = BlenderRigProfile(
     "rigify-metarig",
     _sided({"Hip": "spine", "Spine": "spine.001", "Thorax": "spine.004", "Neck": "spine.006",
@@ -139,7 +139,7 @@ def detect(parents):
 
 
 def switches(profile_name):
-    """(pose bone, property) -> value the profile needs while generated motion plays."""
+    """Data path -> value the profile needs while generated motion plays."""
     return next((p.switches for p in PROFILES if p.name == profile_name), {})
 
 

@@ -38,24 +38,42 @@ def checked_mapping(armature):
     return bones
 
 
+def _owner_and_name(armature, path):
+    """(owner, key, is_item) of a data path like 'pose.bones["b"]["prop"]' or '...constraints["c"].influence'."""
+    if path.endswith('"]'):
+        owner_path, _, key = path[:-2].rpartition('["')
+        return armature.path_resolve(owner_path), key, True
+    owner_path, _, key = path.rpartition(".")
+    return armature.path_resolve(owner_path), key, False
+
+
 def current_switches(armature, values):
-    """The rig's present values of the switches named in ``values`` {(pose bone, property): value}."""
-    return {(bone, prop): armature.pose.bones[bone][prop] for bone, prop in values
-            if bone in armature.pose.bones and prop in armature.pose.bones[bone]}
+    """The rig's present values of the switches (data paths) in ``values`` that exist on it."""
+    out = {}
+    for path in values:
+        try:
+            out[path] = armature.path_resolve(path)
+        except ValueError:  # not on this rig
+            continue
+    return out
 
 
 def apply_switches(armature, values):
-    """Set rig switches {(pose bone, property): value}."""
-    for (bone, prop), value in current_switches(armature, values).items():
-        armature.pose.bones[bone][prop] = values[(bone, prop)]
+    """Set switches {data path: value} that exist on the rig."""
+    for path in current_switches(armature, values):
+        owner, key, is_item = _owner_and_name(armature, path)
+        if is_item:
+            owner[key] = values[path]
+        else:
+            setattr(owner, key, values[path])
 
 
 def switches_to_json(values):
-    return json.dumps([[bone, prop, value] for (bone, prop), value in values.items()])
+    return json.dumps(values)
 
 
 def switches_from_json(text):
-    return {(bone, prop): value for bone, prop, value in (json.loads(text) if text else [])}
+    return json.loads(text) if text else {}
 
 
 def _drivers(armature, keyed):

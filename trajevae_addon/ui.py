@@ -2,7 +2,7 @@
 
 import bpy
 
-from . import inference, rig_mapping, rig_state
+from . import inference, pipeline, rig_mapping, rig_state
 from .runtime import skeleton
 
 
@@ -16,6 +16,8 @@ class TRAJEVAE_UL_bindings(bpy.types.UIList):
         row = layout.row(align=True)
         row.label(text=item.bone, icon='BONE_DATA')
         row.prop(item, "curve", text="")
+        if item.curve is not None and item.curve.type == 'GREASEPENCIL':
+            row.prop(item, "use_drawing_speed", text="", icon='TIME')
 
 
 class TRAJEVAE_UL_variants(bpy.types.UIList):
@@ -52,14 +54,22 @@ class TRAJEVAE_PT_main(_SidebarPanel, bpy.types.Panel):
         if not inference.torch_installed():
             box.label(text="Runs on numpy: torch is not needed here", icon='CHECKMARK')
 
-        layout.label(text="Curves (bone follows curve)")
+        layout.label(text="Paths (bone follows curve or stroke)")
         row = layout.row()
         row.template_list("TRAJEVAE_UL_bindings", "", settings, "bindings", settings, "active_binding", rows=2)
         column = row.column(align=True)
         column.operator("trajevae.bind_curve", icon='ADD', text="")
         column.operator("trajevae.unbind", icon='REMOVE', text="")
-        if not len(settings.bindings):
-            layout.label(text="No curves: diverse motions from the current pose", icon='INFO')
+        bones = rig_state.mapping(armature)
+        listed = {b.bone for b in settings.bindings}
+        for bone in bones.values():
+            if bone and bone not in listed:
+                for constraint in pipeline.path_constraints(armature, bone):
+                    layout.label(text=f"{bone} follows {constraint.target.name} ({constraint.name})",
+                                 icon='CON_FOLLOWPATH')
+        if not len(settings.bindings) and not any(pipeline.path_constraints(armature, b) for b in bones.values()
+                                                  if b):
+            layout.label(text="No paths: diverse motions from the current pose", icon='INFO')
 
         column = layout.column(align=True)
         column.prop(settings, "variant_count")
