@@ -14,7 +14,7 @@ $(VENV)/.installed: requirements.txt
 setup: $(VENV)/.installed
 
 demo: setup
-	$(PY) -m model_runtime.data stats ../shared/mocap
+	$(PY) scripts/demo.py
 
 test: setup
 	$(PY) -m pytest -q

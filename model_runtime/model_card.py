@@ -22,6 +22,8 @@ def render(meta, evaluation):
         for k, row in by_k.items():
             rows.append(f"| {method} | {k} | " + " | ".join(
                 "-" if row[m] is None else f"{row[m]:.3f}" for m in METRICS) + " |")
+    truth = evaluation.get("ground_truth", {})
+    rows.append("| ground truth | | " + " | ".join(f"{truth[m]:.3f}" if m in truth else "" for m in METRICS) + " |")
     return f"""# TrajeVAE model card
 
 Pose completion for motion from trajectories (Kania, Kowalski, Trzcinski), scaled
@@ -32,6 +34,11 @@ code). Reproduce with `python -m model_runtime.train`.
 Given an initial pose and any joints known on any frames (drawn curves, keys, an end
 pose, or nothing), it samples full-body motions of {config['frames']} frames at
 {clips.NATIVE_FPS} fps (2 s), metres, Z up, initial root at the ground-plane origin.
+Beyond the paper: the known-joint mask is an input (a zero coordinate is ambiguous),
+training masks vary over time as well as joints (keys, end poses, partial curves), and
+the decoder also sees, uncompressed, the known joints relative to the initial pose and
+their per-frame steps, so given curves are followed closely. A bone-length loss keeps
+limbs rigid.
 
 ## Data
 Real optical motion capture in ../shared/mocap (CMU and ACCAD), 17 canonical joints.
@@ -55,7 +62,12 @@ cores; validation prior-mean joint error {meta['validation_error_m']:.4f} m.
 ## Evaluation
 {evaluation['windows']} validation windows, K = {evaluation.get('samples', 50)} samples,
 DLow protocol (metres; APD diversity, ADE/FDE best of K, MMADE/MMFDE over pseudo
-ground truths), traj_err = mean distance of conditioned joints to their trajectories.
+ground truths), traj_err = mean distance of conditioned joints to their trajectories,
+MPD = minimum pairwise distance among the K samples; realism: bone_dev = mean rigid
+bone-length deviation from the initial pose (m), angle_out = share of frames outside
+the joint-angle limits fitted on the training poses, skating = mean horizontal foot
+speed while the foot is within 5 cm of the floor (m/s). "sampler" is the diverse
+Gumbel-softmax sampler over the frozen model (assets/sampler.npz).
 k = number of trajectories given, in the order RFoot, LFoot, RWrist, LWrist.
 Run in {evaluation['seconds']:.0f} s with `python -m model_runtime.evaluate`.
 

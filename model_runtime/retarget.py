@@ -113,8 +113,12 @@ def _bend_weight(upper, lower):
     return np.clip((bend - 5.0) / 20.0, 0.0, 1.0)
 
 
-def joint_deltas(rig, targets):
-    """World deltas joint -> (F, 4, 4) for every mapped joint, from targets (F, 17, 3)."""
+def joint_deltas(rig, targets, pinned=None):
+    """World deltas joint -> (F, 4, 4) for every mapped joint, from targets (F, 17, 3).
+
+    ``pinned`` (F, 17), optional: joints the artist fixed on each frame; a
+    pinned pelvis is never moved to let the feet reach.
+    """
     start, frames = rig.joints, len(targets)
     deltas = {}
 
@@ -130,7 +134,8 @@ def joint_deltas(rig, targets):
     up = lambda pose: pose[..., J["Thorax"], :] - pose[..., J["Hip"], :]
     pelvis = frame(up(targets), across(targets, "LHip", "RHip")) @ frame(
         up(start), across(start, "LHip", "RHip")).T
-    deltas["Hip"] = _reach_feet(rig, targets, _rigid(pelvis, start[J["Hip"]], targets[:, J["Hip"]]))
+    free = np.ones(len(targets)) if pinned is None else 1.0 - pinned[:, J["Hip"]]
+    deltas["Hip"] = _reach_feet(rig, targets, _rigid(pelvis, start[J["Hip"]], targets[:, J["Hip"]]), free)
     if "Spine" in rig.bones:
         chest = frame(up(targets), across(targets, "LShoulder", "RShoulder")) @ frame(
             up(start), across(start, "LShoulder", "RShoulder")).T
@@ -147,12 +152,13 @@ def joint_deltas(rig, targets):
     return deltas
 
 
-def _reach_feet(rig, targets, pelvis, rounds=4):
+def _reach_feet(rig, targets, pelvis, free, rounds=4):
     """The pelvis delta (F, 4, 4) moved toward any foot target the rig's leg cannot reach.
 
     Generated hips can sit a little too far from the feet for the rig's legs
     (a pinned foot, other proportions); moving the body keeps the feet planted
-    instead of leaving them short of the floor.
+    instead of leaving them short of the floor. Only on frames where ``free``
+    (F,) is 1.
     """
     start = rig.joints
     pelvis = pelvis.copy()
@@ -164,7 +170,7 @@ def _reach_feet(rig, targets, pelvis, rounds=4):
             to_end = targets[:, J[end]] - _apply(pelvis, start[J[upper]])
             distance = np.linalg.norm(to_end, axis=-1, keepdims=True)
             shift += np.maximum(distance - reach, 0.0) * to_end / np.maximum(distance, 1e-9)
-        pelvis[:, :3, 3] += shift
+        pelvis[:, :3, 3] += shift * free[:, None]
     return pelvis
 
 

@@ -118,8 +118,13 @@ def rigify(registered):
 def test_generated_rigify_rig_is_keyed_on_its_fk_controls(registered, rigify):
     scene, rig = registered, rigify
     assert api.map_rig(rig)["LWrist"] == "hand_fk.L"
+    rig.pose.bones["foot_ik.L"].location = (0.0, 0.1, 0.25)  # the artist poses the left leg in IK
+    bpy.context.view_layer.update()
+    shown_foot = np.array(rig.pose.bones["ORG-foot.L"].head)
     _bind(scene, rig, ("LWrist", "RWrist"))
     made = api.generate_variants(rig, n=2, seed=1)
+    scene.frame_set(scene.frame_start)
+    assert np.linalg.norm(np.array(rig.pose.bones["ORG-foot.L"].head) - shown_foot) < 0.03  # starts as shown (IK may stretch)
     _check_variants(rig, made, 2)
     keyed = {path for path, _ in _keys(made[0])}
     bones = {path.split('"')[1] for path in keyed}

@@ -177,7 +177,9 @@ def prepare(armature, count=5, seed=0, diversity=1.0, scene=None):
     if armature is None or armature.type != 'ARMATURE':
         raise rig_state.RigError("select an armature to generate motion for")
     bones = rig_state.checked_mapping(armature)
-    switches = {**rig_mapping.switches(rig_state.detected(armature)[0]), **muted_path_constraints(armature, bones)}
+    profile = rig_state.detected(armature)[0]
+    shown_by = rig_mapping.shown_by(profile)
+    switches = {**rig_mapping.switches(profile), **muted_path_constraints(armature, bones)}
     switches_before = rig_state.current_switches(armature, switches)
     switches = {path: value for path, value in switches.items() if path in switches_before}
     frames = scene_frames(scene)
@@ -191,7 +193,7 @@ def prepare(armature, count=5, seed=0, diversity=1.0, scene=None):
         for frame in [int(frames[0])] + sorted(key_frames):
             if frame != scene.frame_current:
                 scene.frame_set(frame)
-            poses[frame] = rig_state.read(armature, bones, bpy.context.evaluated_depsgraph_get())
+            poses[frame] = rig_state.read(armature, bones, bpy.context.evaluated_depsgraph_get(), shown_by)
         if scene.frame_current != current:
             scene.frame_set(current)
         return key_frames, poses
@@ -254,7 +256,10 @@ def finish(job, armature):
     clock = time.perf_counter()  # all variants in one batch of count x F frames
     count, frames = job.count, len(job.frames)
     targets = job.motion @ job.world_to_armature[:3, :3].T + job.world_to_armature[:3, 3]
-    deltas = retarget.joint_deltas(job.rig, targets.reshape(-1, *targets.shape[2:]))
+    known = np.concatenate([np.zeros((1, job.mask.shape[1])), job.mask])[..., None]  # initial frame free
+    pinned = generation.to_scene_rate(np.repeat(known, 3, axis=-1), frames, job.fps)[..., 0] > 0.999
+    deltas = retarget.joint_deltas(job.rig, targets.reshape(-1, *targets.shape[2:]),
+                                   np.tile(pinned, (count, 1)).astype(float))
     flat = retarget.bone_bases(job.rig, deltas)
     report.bases = [{bone: basis.reshape(count, frames, 4, 4)[index] for bone, basis in flat.items()}
                     for index in range(count)]

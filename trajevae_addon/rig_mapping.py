@@ -30,6 +30,7 @@ class BlenderRigProfile:
     bones: dict  # joint -> bone name
     signature: tuple
     switches: dict = field(default_factory=dict)  # data path -> value while generated motion plays
+    shown_by: dict = field(default_factory=dict)  # keyed bone -> bone showing the pose the artist sees
 
 
 def _sided(table):
@@ -57,7 +58,10 @@ _RIGIFY = BlenderRigProfile(
     signature=("torso", "ORG-spine", "thigh_parent.L"),
     switches={**{f'pose.bones["{limb}_parent.{side}"]["{prop}"]': value for limb in ("thigh", "upper_arm")
                  for side in "LR" for prop, value in (("IK_FK", 1.0), ("FK_limb_follow", 0.0))},
-              'pose.bones["torso"]["neck_follow"]': 1.0, 'pose.bones["torso"]["head_follow"]': 1.0})
+              'pose.bones["torso"]["neck_follow"]': 1.0, 'pose.bones["torso"]["head_follow"]': 1.0},
+    # an artist posing in IK sees the ORG chain: generation starts from it, as an FK snap would
+    shown_by={f"{part}_fk.{side}": f"ORG-{part}.{side}" for side in "LR"
+              for part in ("thigh", "shin", "foot", "upper_arm", "forearm", "hand")})
 _METARIG = BlenderRigProfile(
     "rigify-metarig",
     _sided({"Hip": "spine", "Spine": "spine.001", "Thorax": "spine.004", "Neck": "spine.006",
@@ -138,9 +142,20 @@ def detect(parents):
     return name, {joint: mapping.get(joint) for joint in JOINT_NAMES}
 
 
+def _profile(name):
+    return next((p for p in PROFILES if p.name == name), None)
+
+
 def switches(profile_name):
     """Data path -> value the profile needs while generated motion plays."""
-    return next((p.switches for p in PROFILES if p.name == profile_name), {})
+    profile = _profile(profile_name)
+    return profile.switches if profile else {}
+
+
+def shown_by(profile_name):
+    """Keyed bone -> the bone that shows the pose the artist sees (when they differ)."""
+    profile = _profile(profile_name)
+    return profile.shown_by if profile else {}
 
 
 def missing(mapping):

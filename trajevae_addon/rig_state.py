@@ -87,11 +87,30 @@ def _drivers(armature, keyed):
     return out
 
 
-def read(armature, bones, depsgraph):
+def _snap(matrices, bases, drivers, shown):
+    """Keyed bones moved onto the ``shown`` matrices, in place, parents first: a snapped bone's
+    children ride along with it, so each gets the basis that puts it where it is shown."""
+    moved = {}
+
+    def depth(bone):
+        return 0 if drivers[bone] is None else 1 + depth(drivers[bone])
+
+    for bone in sorted(matrices, key=depth):
+        parent_space = matrices[bone] @ np.linalg.inv(bases[bone])
+        if drivers[bone] in moved:
+            parent_space = moved[drivers[bone]] @ parent_space
+        new = shown.get(bone, parent_space @ bases[bone])
+        moved[bone] = new @ np.linalg.inv(matrices[bone])
+        matrices[bone], bases[bone] = new, np.linalg.inv(parent_space) @ new
+
+
+def read(armature, bones, depsgraph, shown_by=None):
     """The rig as the retargeter needs it (armature space) and its joints in world space (17, 3).
 
-    Call with the scene at the start frame. Keyed bones are read as evaluated
-    (on a Rigify rig the FK controls, whatever the IK/FK switches show).
+    Call with the scene at the start frame. ``shown_by`` {keyed bone: bone}
+    names bones that show the visible pose when the keyed ones may not (a
+    Rigify rig posed in IK): the keyed bone is then read as if snapped onto
+    it, with the basis that would put it there.
     """
     evaluated = armature.evaluated_get(depsgraph)
     pose = evaluated.pose.bones
@@ -99,6 +118,10 @@ def read(armature, bones, depsgraph):
     names = set(keyed.values())
     matrices = {bone: np.array(pose[bone].matrix, dtype=np.float64) for bone in names}
     bases = {bone: np.array(pose[bone].matrix_basis, dtype=np.float64) for bone in names}
+    drivers = _drivers(armature, names)
+    if shown_by:
+        _snap(matrices, bases, drivers, {bone: np.array(pose[shown].matrix, dtype=np.float64)
+                                         for bone, shown in shown_by.items() if bone in names and shown in pose})
     joints = np.zeros((skeleton.NUM_JOINTS, 3))
     for joint in profiles.MAPPED_JOINTS:
         joints[J[joint]] = matrices[keyed[joint]][:3, 3]
@@ -112,8 +135,7 @@ def read(armature, bones, depsgraph):
         head_axis = matrices[keyed["Neck"]][:3, 1]
         joints[J["Head"]] = joints[J["Neck"]] + profiles.HEAD_LENGTH_PER_LEG * legs * head_axis / np.linalg.norm(
             head_axis)
-    state = retarget.RigState(bones=keyed, matrices=matrices, bases=bases, drivers=_drivers(armature, names),
-                              joints=joints)
+    state = retarget.RigState(bones=keyed, matrices=matrices, bases=bases, drivers=drivers, joints=joints)
     world = np.array(armature.matrix_world, dtype=np.float64)
     return state, joints @ world[:3, :3].T + world[:3, 3]
 

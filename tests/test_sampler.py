@@ -1,0 +1,54 @@
+"""The diverse sampler with the shipped weights: more different variants, still plausible; its training."""
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from model_runtime import metrics, realism, train_sampler, weights
+from model_runtime.data import dataset
+from model_runtime.numpy_model import NumpySampler, NumpyTrajeVAE
+
+
+@pytest.fixture(scope="module")
+def windows(all_clips, manifest):
+    _, validation = dataset.split_by_subject(all_clips, manifest)
+    return dataset.windows(validation, future=60, stride=60)[:24]
+
+
+def test_shipped_sampler_weights_are_plain_arrays_for_the_shipped_model():
+    assert weights.SAMPLER_WEIGHTS.stat().st_size < 30 * 2 ** 20
+    with np.load(weights.SAMPLER_WEIGHTS, allow_pickle=False) as stored:
+        meta = json.loads(str(stored["__meta__"]))
+    _, model_meta = weights.load_model()
+    assert meta["config"]["latent_size"] == model_meta["config"]["dct_keep"] * model_meta["config"]["latent"]
+
+
+def test_sampler_variants_differ_more_than_plain_sampling_and_stay_plausible(windows):
+    model, sampler = NumpyTrajeVAE(weights.MODEL_WEIGHTS), NumpySampler(weights.SAMPLER_WEIGHTS)
+    initial = windows[:, 0]
+    nothing = np.zeros((len(windows), 60, 17, 3), np.float32)
+    empty = np.zeros((len(windows), 60, 17), np.float32)
+    plain = model.sample(initial, nothing, empty, 10, np.random.default_rng(0))
+    diverse = model.sample(initial, nothing, empty, 10, np.random.default_rng(0), sampler=sampler)
+    figures = {}
+    for name, motion in (("plain", plain), ("sampler", diverse)):
+        protocol = [metrics.to_protocol(m) for m in motion]
+        starts = np.broadcast_to(initial[:, None], motion.shape[:2] + initial.shape[1:])
+        figures[name] = {"APD": np.mean([metrics.apd(p) for p in protocol]),
+                         "MPD": np.mean([metrics.mpd(p) for p in protocol]),
+                         "bone_dev": realism.bone_length_deviation(motion, starts)}
+    print(figures)
+    assert figures["sampler"]["APD"] > 1.3 * figures["plain"]["APD"]
+    assert figures["sampler"]["MPD"] > 2.0 * figures["plain"]["MPD"]
+    assert figures["sampler"]["bone_dev"] < 1.2 * figures["plain"]["bone_dev"] + 0.005
+
+
+def test_sampler_training_runs_checkpoints_and_resumes(tmp_path):
+    out, checkpoint = tmp_path / "sampler.npz", tmp_path / "sampler.pt"
+    common = ["--out", str(out), "--checkpoint", str(checkpoint), "--batch", "2"]
+    assert train_sampler.main(["--steps", "2", "--fresh"] + common) == 0
+    assert torch.load(checkpoint, weights_only=True)["step"] == 2 and out.exists()
+    assert train_sampler.main(["--steps", "3"] + common) == 0
+    assert torch.load(checkpoint, weights_only=True)["step"] == 3
