@@ -97,7 +97,7 @@ def share_outside_limits(motion, limits, tolerance=1e-3):
 
 def bone_length_deviation(motion, initial):
     """Mean absolute deviation (m) of rigid bone lengths in motion (..., T, 17, 3) from initial (..., 17, 3)."""
-    motion, initial = torch.as_tensor(motion, dtype=torch.float64), torch.as_tensor(initial, dtype=torch.float64)
+    motion, initial = (torch.from_numpy(np.array(a, dtype=np.float64)) for a in (motion, initial))
     return float((rigid_bone_lengths(motion) - rigid_bone_lengths(initial)[..., None, :]).abs().mean())
 
 

@@ -99,11 +99,7 @@ def _twist_to(rotation, axis, reference, wanted, weight):
     flat = lambda v: _unit(v - np.sum(v * axis, axis=-1, keepdims=True) * axis)
     r, w = flat(reference), flat(wanted)
     angle = np.arctan2(np.sum(np.cross(r, w) * axis, axis=-1), np.sum(r * w, axis=-1)) * weight
-    k = np.zeros(axis.shape + (3,))
-    k[..., 0, 1], k[..., 0, 2], k[..., 1, 2] = -axis[..., 2], axis[..., 1], -axis[..., 0]
-    k = k - np.swapaxes(k, -1, -2)
-    twist = np.eye(3) + np.sin(angle)[..., None, None] * k + (1 - np.cos(angle))[..., None, None] * (k @ k)
-    return twist @ rotation
+    return _axis_angle_matrix(axis, angle) @ rotation
 
 
 def _bend_weight(upper, lower):
@@ -117,7 +113,8 @@ def joint_deltas(rig, targets, pinned=None):
     """World deltas joint -> (F, 4, 4) for every mapped joint, from targets (F, 17, 3).
 
     ``pinned`` (F, 17), optional: joints the artist fixed on each frame; a
-    pinned pelvis is never moved to let the feet reach.
+    pinned pelvis is never moved to let the feet reach, and the chest leans
+    toward pinned hands beyond the arms' reach.
     """
     start, frames = rig.joints, len(targets)
     deltas = {}
@@ -140,6 +137,8 @@ def joint_deltas(rig, targets, pinned=None):
         chest = frame(up(targets), across(targets, "LShoulder", "RShoulder")) @ frame(
             up(start), across(start, "LShoulder", "RShoulder")).T
         deltas["Spine"] = _rigid(chest, head("Spine"), _apply(carried("Spine"), head("Spine")))
+        if pinned is not None:
+            deltas["Spine"] = _lean_to_hands(rig, targets, deltas["Spine"], head("Spine"), pinned)
     for joint, child in (("Thorax", "Neck"), ("Neck", "Head")):
         parent = carried(joint)
         pivot = _apply(parent, start[J[joint]])
@@ -150,6 +149,33 @@ def joint_deltas(rig, targets, pinned=None):
     for upper, lower, end in LIMBS:
         deltas.update(_limb(rig, targets, carried(upper), upper, lower, end, heading))
     return deltas
+
+
+def _axis_angle_matrix(axis, angle):
+    """Rotations (F, 3, 3) by ``angle`` (F,) about unit ``axis`` (F, 3)."""
+    k = np.zeros(axis.shape + (3,))
+    k[..., 0, 1], k[..., 0, 2], k[..., 1, 2] = -axis[..., 2], axis[..., 1], -axis[..., 0]
+    k = k - np.swapaxes(k, -1, -2)
+    return np.eye(3) + np.sin(angle)[..., None, None] * k + (1 - np.cos(angle))[..., None, None] * (k @ k)
+
+
+def _lean_to_hands(rig, targets, chest, pivot, pinned):
+    """The chest delta (F, 4, 4) turned about the spine bone's head, just enough for a pinned hand
+    beyond the arm's reach to come within it (as a body leans to reach)."""
+    start = rig.joints
+    for shoulder, elbow, wrist in LIMBS[2:]:
+        reach = 0.999 * (np.linalg.norm(start[J[elbow]] - start[J[shoulder]])
+                         + np.linalg.norm(start[J[wrist]] - start[J[elbow]]))
+        centre = _apply(chest, pivot)
+        arm = _apply(chest, start[J[shoulder]]) - centre
+        goal = targets[:, J[wrist]] - centre
+        r, d = np.linalg.norm(arm, axis=-1), np.linalg.norm(goal, axis=-1)
+        between = np.arccos(np.clip(np.sum(arm * goal, -1) / np.maximum(r * d, 1e-12), -1.0, 1.0))
+        closest = np.arccos(np.clip((r ** 2 + d ** 2 - reach ** 2) / np.maximum(2 * r * d, 1e-12), -1.0, 1.0))
+        turn = np.clip(between - closest, 0.0, between) * pinned[:, J[wrist]]
+        rotation = _axis_angle_matrix(_unit(np.cross(arm, goal)), turn) @ chest[:, :3, :3]
+        chest = _rigid(rotation, pivot, centre)
+    return chest
 
 
 def _reach_feet(rig, targets, pelvis, free, rounds=4):

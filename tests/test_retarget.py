@@ -102,3 +102,18 @@ def test_quaternions_are_made_continuous():
     flipped = np.where(np.arange(40)[:, None] % 3 == 0, -quats, quats)
     smooth = rotations.continuous(flipped)
     assert np.all(np.sum(smooth[1:] * smooth[:-1], axis=-1) > 0)
+
+
+def test_the_chest_leans_so_a_pinned_hand_beyond_reach_gets_there(motion):
+    rig, rest = _plain_rig(motion[0])
+    targets = motion[1:].copy()
+    shoulder, wrist = JOINT_INDEX["LShoulder"], JOINT_INDEX["LWrist"]
+    away = targets[:, wrist] - targets[:, shoulder]
+    targets[:, wrist] += 0.12 * away / np.linalg.norm(away, axis=-1, keepdims=True)  # 12 cm past the hand
+    pinned = np.zeros(targets.shape[:2])
+    pinned[:, wrist] = 1.0
+    errors = {}
+    for name, mask in (("free", None), ("pinned", pinned)):
+        pose = _forward(rest, retarget.bone_bases(rig, retarget.joint_deltas(rig, targets, mask)))
+        errors[name] = np.linalg.norm(pose["LWrist"][:, :3, 3] - targets[:, wrist], axis=-1).mean()
+    assert errors["free"] > 0.02 and errors["pinned"] < 0.005, errors
