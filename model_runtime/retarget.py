@@ -5,7 +5,7 @@ initial pose (the evaluated pose at the start frame), so rest-pose axes, bone
 rolls and units do not matter. Each mapped bone gets a rigid world "delta"
 (F, 4, 4) that carries its initial matrix to the new one:
 
-- Hip (the root): pelvis frame (hips across, torso up) and translation of the
+- Hip (the root): pelvis frame (hips across exactly, torso up) and translation of the
   pelvis centre, moved where a leg could not reach its foot.
 - Spine: chest frame (shoulders across, torso up), about the bone's head.
 - Thorax and Neck (the neck and head bones): aimed at the next joint.
@@ -129,8 +129,8 @@ def joint_deltas(rig, targets, pinned=None):
 
     across = lambda pose, l, r: pose[..., J[l], :] - pose[..., J[r], :]
     up = lambda pose: pose[..., J["Thorax"], :] - pose[..., J["Hip"], :]
-    pelvis = frame(up(targets), across(targets, "LHip", "RHip")) @ frame(
-        up(start), across(start, "LHip", "RHip")).T
+    pelvis = frame(across(targets, "LHip", "RHip"), up(targets)) @ frame(  # the hips exactly, then the lean
+        across(start, "LHip", "RHip"), up(start)).T
     free = np.ones(len(targets)) if pinned is None else 1.0 - pinned[:, J["Hip"]]
     deltas["Hip"] = _reach_feet(rig, targets, _rigid(pelvis, start[J["Hip"]], targets[:, J["Hip"]]), free)
     if "Spine" in rig.bones:
