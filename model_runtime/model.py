@@ -15,8 +15,9 @@ input because a zero coordinate is ambiguous). Latents are the first
 to time, sees the encoded trajectories and initial pose, and predicts
 per-frame offsets summed from x0. It also sees, uncompressed, where each known
 joint is relative to x0 and its step from the previous frame (where both are
-known): an offset for a known joint is then nearly a copy of its step, so
-curves are followed closely. Native rate: 30 fps; T = 60 (2 s).
+known), and those steps are added to its offsets: a known joint follows its
+curve unless the network corrects it, and the bone-length loss makes the rest
+of the body come along. Native rate: 30 fps; T = 60 (2 s).
 """
 
 import math
@@ -142,7 +143,8 @@ class TrajeVAE(nn.Module):
         frames = torch.cat([in_time, condition, pose_code[:, None].expand(-1, in_time.shape[1], -1), given],
                            dim=-1)
         hidden = self.decoder_transformer(self.decoder_input(frames) + self.time_code)
-        offsets = self.decoder_output(hidden).view(*hidden.shape[:2], NUM_JOINTS, 3)
+        steps = given[..., NUM_JOINTS * 3:NUM_JOINTS * 6].unflatten(-1, (NUM_JOINTS, 3))
+        offsets = self.decoder_output(hidden).view(*hidden.shape[:2], NUM_JOINTS, 3) + steps
         return initial[:, None] + torch.cumsum(offsets, dim=1)
 
     def forward(self, initial, future, mask):

@@ -118,7 +118,9 @@ class NumpyTrajeVAE:
         hidden = w.transformer("decoder_transformer", w.mlp("decoder_input", frames, final_norm=False)
                                + self.time_code, self.config["heads"])
         offsets = w.linear("decoder_output.2", _leaky(w.linear("decoder_output.0", hidden)))
-        return initial[:, None] + np.cumsum(offsets.reshape(*hidden.shape[:2], NUM_JOINTS, 3), axis=1)
+        offsets = offsets.reshape(*hidden.shape[:2], NUM_JOINTS, 3) + given[..., NUM_JOINTS * 3:NUM_JOINTS * 6].reshape(
+            *hidden.shape[:2], NUM_JOINTS, 3)  # the given steps, as in model.TrajeVAE.decode
+        return initial[:, None] + np.cumsum(offsets, axis=1)
 
     def sample(self, initial, trajectories, mask, count, rng, scale=1.0, sampler=None):
         """``count`` motions per condition (B, count, T, 17, 3): prior samples, or the diverse

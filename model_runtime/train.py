@@ -23,7 +23,7 @@ from .realism import rigid_bone_lengths
 
 @dataclass(frozen=True)
 class TrainConfig:
-    steps: int = 8000
+    steps: int = 5000
     batch: int = 64
     learning_rate: float = 4e-4
     warmup: int = 300

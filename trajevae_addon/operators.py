@@ -8,15 +8,10 @@ from bpy.props import IntProperty
 from . import api, curves, pipeline, rig_state, variants
 
 
-def _armature(context):
-    obj = context.active_object
-    return obj if obj is not None and obj.type == 'ARMATURE' else None
-
-
 class _ArmatureOperator:
     @classmethod
     def poll(cls, context):
-        return _armature(context) is not None
+        return rig_state.active_armature(context) is not None
 
 
 class TRAJEVAE_OT_generate(_ArmatureOperator, bpy.types.Operator):
@@ -28,12 +23,14 @@ class TRAJEVAE_OT_generate(_ArmatureOperator, bpy.types.Operator):
     bl_options = {'REGISTER', 'UNDO'}
 
     _job = None
+    _armature_name = ""
     _worker = None
     _error = None
     _timer = None
 
     def _start(self, context):
-        armature = _armature(context)
+        armature = rig_state.active_armature(context)
+        self._armature_name = armature.name  # the artist may select something else meanwhile
         settings = armature.trajevae
         try:
             self._job = pipeline.prepare(armature, settings.variant_count, settings.seed, settings.diversity,
@@ -44,7 +41,11 @@ class TRAJEVAE_OT_generate(_ArmatureOperator, bpy.types.Operator):
         return True
 
     def _finish(self, context):
-        report = pipeline.finish(self._job, _armature(context))
+        armature = bpy.data.objects.get(self._armature_name)
+        if armature is None:
+            self.report({'ERROR'}, f"{self._armature_name!r} was deleted during generation")
+            return {'CANCELLED'}
+        report = pipeline.finish(self._job, armature)
         errors = ", ".join(f"{100 * e:.1f}" for e in report.curve_error_m)
         self.report({'INFO'}, f"{len(report.actions)} variants in {sum(report.seconds.values()):.2f} s"
                               + (f"; curve error (cm): {errors}" if self._job.curve_paths else ""))
@@ -114,7 +115,7 @@ class TRAJEVAE_OT_step_variant(_ArmatureOperator, bpy.types.Operator):
     step: IntProperty(default=1)
 
     def execute(self, context):
-        settings = _armature(context).trajevae
+        settings = rig_state.active_armature(context).trajevae
         if not len(settings.variants):
             return {'CANCELLED'}
         settings.active_variant = (settings.active_variant + self.step) % len(settings.variants)
@@ -129,7 +130,7 @@ class TRAJEVAE_OT_keep_variant(_ArmatureOperator, bpy.types.Operator):
     bl_options = {'REGISTER', 'UNDO'}
 
     def execute(self, context):
-        armature = _armature(context)
+        armature = rig_state.active_armature(context)
         settings = armature.trajevae
         if not 0 <= settings.active_variant < len(settings.variants):
             self.report({'ERROR'}, "no variant to keep")
@@ -146,7 +147,7 @@ class TRAJEVAE_OT_discard_variants(_ArmatureOperator, bpy.types.Operator):
     bl_options = {'REGISTER', 'UNDO'}
 
     def execute(self, context):
-        variants.restore_original(_armature(context))
+        variants.restore_original(rig_state.active_armature(context))
         return {'FINISHED'}
 
 
@@ -158,7 +159,7 @@ class TRAJEVAE_OT_bind_curve(_ArmatureOperator, bpy.types.Operator):
     bl_options = {'REGISTER', 'UNDO'}
 
     def execute(self, context):
-        armature = _armature(context)
+        armature = rig_state.active_armature(context)
         bone = armature.data.bones.active
         curve = next((obj for obj in context.selected_objects if obj.type in {'CURVE', 'GREASEPENCIL'}), None)
         if bone is None or curve is None:
@@ -177,7 +178,7 @@ class TRAJEVAE_OT_unbind(_ArmatureOperator, bpy.types.Operator):
     bl_options = {'REGISTER', 'UNDO'}
 
     def execute(self, context):
-        settings = _armature(context).trajevae
+        settings = rig_state.active_armature(context).trajevae
         if 0 <= settings.active_binding < len(settings.bindings):
             settings.bindings.remove(settings.active_binding)
             settings.active_binding = max(0, settings.active_binding - 1)

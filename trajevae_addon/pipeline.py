@@ -30,7 +30,6 @@ class Cancelled(Exception):
 class Job:
     """One generation's inputs (read from the scene) and, after ``infer``, its motion."""
 
-    armature_name: str
     count: int
     seed: int
     diversity: float
@@ -221,7 +220,7 @@ def prepare(armature, count=5, seed=0, diversity=1.0, scene=None):
             generation.curve_samples(points, model_frames, span, times)[1:])
         mask[:, J[joint]] = 1.0
         curve_paths[joint] = generation.curve_samples(points, len(frames) - 1, len(frames) - 1, times)
-    return Job(armature.name, count, seed, diversity, bones, switches, switches_before, frames, fps,
+    return Job(count, seed, diversity, bones, switches, switches_before, frames, fps,
                metres_per_unit, rig,
                placement.to_model(joints), placement, trajectories, mask, curve_paths,
                np.linalg.inv(np.array(armature.matrix_world, dtype=np.float64)),

@@ -14,6 +14,12 @@ class RigError(ValueError):
     """The rig cannot be used as it is; the message says what to fix."""
 
 
+def active_armature(context):
+    """The active object if it is an armature, else None."""
+    obj = context.active_object
+    return obj if obj is not None and obj.type == 'ARMATURE' else None
+
+
 def detected(armature):
     """(profile name, {joint: bone or None}) from the armature's bone names alone."""
     return rig_mapping.detect({bone.name: bone.parent.name if bone.parent else None

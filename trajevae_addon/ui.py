@@ -6,11 +6,6 @@ from . import inference, pipeline, rig_mapping, rig_state
 from .runtime import skeleton
 
 
-def _armature(context):
-    obj = context.active_object
-    return obj if obj is not None and obj.type == 'ARMATURE' else None
-
-
 class TRAJEVAE_UL_bindings(bpy.types.UIList):
     def draw_item(self, context, layout, data, item, icon, active_data, active_property, index=0, flt_flag=0):
         row = layout.row(align=True)
@@ -38,7 +33,7 @@ class TRAJEVAE_PT_main(_SidebarPanel, bpy.types.Panel):
 
     def draw(self, context):
         layout = self.layout
-        armature = _armature(context)
+        armature = rig_state.active_armature(context)
         if armature is None:
             layout.label(text="Select an armature", icon='INFO')
             layout.operator("trajevae.add_mannequin", icon='ARMATURE_DATA')
@@ -98,10 +93,10 @@ class TRAJEVAE_PT_mapping(_SidebarPanel, bpy.types.Panel):
 
     @classmethod
     def poll(cls, context):
-        return _armature(context) is not None
+        return rig_state.active_armature(context) is not None
 
     def draw(self, context):
-        armature = _armature(context)
+        armature = rig_state.active_armature(context)
         _, detected = rig_state.detected(armature)
         layout = self.layout
         layout.label(text="Empty fields use the detected bone")
