@@ -67,11 +67,15 @@ def to_scene_rate(motion, scene_frames, fps):
 
 
 def _window(model, initial, trajectories, mask, count, rng, diversity, sampler):
-    """One window for B conditions in the model frame: (B, count, W, 17, 3); inputs (B, ...)."""
+    """One window for B conditions in the model frame: (B, count, W, 17, 3); inputs (B, ...).
+
+    Known joints come back as the decoder's fit, not pasted: carried frames are cross-faded into
+    the new window, and the retarget pins curves and keys exactly afterwards.
+    """
     shift = initial[:, :1].copy()  # (B, 1, 3): root over the floor
     shift[..., 2] = 0.0
     motion = model.sample(initial - shift, (trajectories - shift[:, None]) * mask[..., None], mask, count, rng,
-                          scale=diversity, sampler=sampler)
+                          scale=diversity, sampler=sampler, keep_given=False)
     return motion + shift[:, None, None]
 
 

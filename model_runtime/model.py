@@ -167,7 +167,16 @@ class TrajeVAE(nn.Module):
         noise = torch.zeros_like(mean) if use_mean else torch.randn(
             mean.shape, generator=generator, dtype=mean.dtype)
         motion = self.decode(mean + scale * std * noise, repeat_encoded(encoded, count))
-        return motion.view(initial.shape[0], count, *motion.shape[1:])
+        return with_given_joints(motion.view(initial.shape[0], count, *motion.shape[1:]), trajectories, mask)
+
+
+def with_given_joints(motion, trajectories, mask):
+    """Samples (B, count, T, J, 3) with the known joints set to their given positions (B, T, J, 3).
+
+    Pose completion: what was given is kept as given, as every baseline does; the decoder already
+    brings the rest of the body along (its residual there is a few centimetres).
+    """
+    return torch.where(mask[:, None, ..., None] > 0, trajectories[:, None], motion)
 
 
 def repeat_encoded(encoded, count):

@@ -38,7 +38,8 @@ Beyond the paper: the known-joint mask is an input (a zero coordinate is ambiguo
 training masks vary over time as well as joints (keys, end poses, partial curves), and
 the decoder also sees, uncompressed, the known joints relative to the initial pose and
 their per-frame steps, so given curves are followed closely. A bone-length loss keeps
-limbs rigid.
+limbs rigid. Samples keep the known joints exactly as given (pose completion; every
+baseline below does the same).
 
 ## Data
 Real optical motion capture in ../shared/mocap (CMU and ACCAD), 17 canonical joints.
@@ -67,7 +68,8 @@ MPD = minimum pairwise distance among the K samples; realism: bone_dev = mean ri
 bone-length deviation from the initial pose (m), angle_out = share of frames outside
 the joint-angle limits fitted on the training poses, skating = mean horizontal foot
 speed while the foot is within 5 cm of the floor (m/s). "sampler" is the diverse
-Gumbel-softmax sampler over the frozen model (assets/sampler.npz).
+Gumbel-softmax sampler over the frozen model (assets/sampler.npz), its K variants
+picked from 3K draws (the least plausible third dropped, then farthest points).
 k = number of trajectories given, in the order RFoot, LFoot, RWrist, LWrist.
 Run in {evaluation['seconds']:.0f} s with `python -m model_runtime.evaluate`.
 

@@ -101,6 +101,16 @@ def bone_length_deviation(motion, initial):
     return float((rigid_bone_lengths(motion) - rigid_bone_lengths(initial)[..., None, :]).abs().mean())
 
 
+def skating_loss(motion, fps, contact_m=0.05, softness_m=0.01):
+    """Differentiable ``foot_skating``: mean squared horizontal ankle speed ((m/s)^2) weighted by a
+    soft contact (sigmoid of the height above the lowest ankle height) for motion (..., T, 17, 3)."""
+    feet = motion[..., indices(("RFoot", "LFoot")), :]
+    speed = torch.linalg.norm(torch.diff(feet[..., :2], dim=-3), dim=-1) * fps
+    lowest = feet[..., 2].amin(dim=-2, keepdim=True).detach()
+    contact = torch.sigmoid((lowest + contact_m - feet[..., 1:, :, 2]) / softness_m)
+    return (contact * speed ** 2).sum() / contact.sum().clamp_min(1e-6)
+
+
 def foot_skating(motion, fps, contact_m=0.05):
     """Mean horizontal ankle speed (m/s) on frames where the ankle is within ``contact_m``
     of its lowest height in the motion (ankles sit above the sole, so the floor is the

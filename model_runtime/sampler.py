@@ -5,7 +5,8 @@ the initial pose and any trajectories) a network makes M basis vectors;
 Gumbel-softmax weights combine them into points; a second network maps each
 point to a Gaussian in the prior's standardised latent space:
 z = mu_prior + sigma_prior * (mean_k + sigma_k * eps). The frozen decoder
-turns each z into a motion. Any number of samples at inference.
+turns each z into a motion. Any number of samples at inference; at
+inference N variants are picked from a larger pool (``selection``).
 """
 
 from dataclasses import asdict, dataclass
@@ -13,7 +14,8 @@ from dataclasses import asdict, dataclass
 import torch
 from torch import nn
 
-from .model import repeat_encoded
+from . import selection
+from .model import repeat_encoded, with_given_joints
 
 
 @dataclass(frozen=True)
@@ -69,8 +71,15 @@ class DiverseSampler(nn.Module):
 
 
 def sample_motions(model, sampler, initial, trajectories, mask, count, generator=None):
-    """``count`` diverse motions per condition with the frozen model: (B, count, T, J, 3)."""
+    """``count`` diverse motions per condition with the frozen model, known joints as given: (B, count, T, J, 3).
+
+    Distinct plausible ones from a pool of ``selection.POOL_FACTOR`` x count, as the add-on does.
+    """
+    draws = selection.POOL_FACTOR * count
     prior_mean, prior_log_var, encoded = model.prior(initial, trajectories, mask)
-    z, _ = sampler.latents(prior_mean, prior_log_var, count, generator)
-    motion = model.decode(z, repeat_encoded(encoded, count))
-    return motion.view(initial.shape[0], count, *motion.shape[1:])
+    z, _ = sampler.latents(prior_mean, prior_log_var, draws, generator)
+    motion = model.decode(z, repeat_encoded(encoded, draws)).view(initial.shape[0], draws, -1, *initial.shape[1:])
+    chosen = [selection.distinct_plausible(m, i, count, t, k)
+              for m, i, t, k in zip(motion.numpy(), initial.numpy(), trajectories.numpy(), mask.numpy())]
+    motion = torch.stack([m[torch.from_numpy(c)] for m, c in zip(motion, chosen)])
+    return with_given_joints(motion, trajectories, mask)

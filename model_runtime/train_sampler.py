@@ -1,9 +1,11 @@
 """``python -m model_runtime.train_sampler``: train the diverse sampler over the frozen TrajeVAE.
 
-Losses: hinge diversity between the K samples of a condition, best-of-K
-accuracy, KL of the standardised Gaussians to N(0, I), and the GSPS realism
-terms (joint-angle limits fitted on the training subjects, rigid bone
-lengths) so diversity never comes from broken poses. Half the conditions have
+Losses: hinge diversity between the K samples of a condition, a hinge on each
+sample's distance to its nearest sibling (the duplicate-aware objective of
+../shared/papers/003: a mean-based hinge alone leaves near-duplicates),
+best-of-K accuracy, KL of the standardised Gaussians to N(0, I), and realism
+terms (GSPS joint-angle limits fitted on the training subjects, rigid bone
+lengths, foot skating) so diversity never comes from broken poses. Half the conditions have
 no trajectories (the sampler's main use), half have training masks. Model
 selection on the validation subjects; weights to assets/sampler.npz.
 """
@@ -19,24 +21,27 @@ import numpy as np
 import torch
 
 from . import augment, checkpoints, masks, metrics, realism, weights
-from .data import dataset
+from .data import clips, dataset
 from .model import parameter_count, repeat_encoded
 from .sampler import DiverseSampler, SamplerConfig
 from .train import WindowSampler, learning_rate
 
 @dataclass(frozen=True)
 class SamplerTrainConfig:
-    steps: int = 5000
+    steps: int = 2000
     batch: int = 16
     samples: int = 10  # K per condition in training; any K at inference
     learning_rate: float = 1e-3
     warmup: int = 200
     diversity_margin: float = 2.0  # hinge threshold eta, in multiples of plain sampling's APD
     diversity_weight: float = 1.0
+    duplicate_margin: float = 2.5  # nearest-sibling hinge, in multiples of plain sampling's MPD
+    duplicate_weight: float = 10.0
     accuracy_weight: float = 100.0
     kl_weight: float = 1.0
     angle_weight: float = 100.0
-    bone_weight: float = 100.0
+    bone_weight: float = 1000.0
+    skating_weight: float = 10.0
     empty_mask_share: float = 0.5
     seed: int = 0
     validate_every: int = 250
@@ -49,8 +54,15 @@ def pairwise_distances(motion):
     return torch.cdist(relative, relative)
 
 
-def sampler_losses(model, sampler, initial, future, mask, limits, margin, config, generator=None):
-    """Weighted total and its parts for one batch."""
+def nearest_sibling_distances(distances):
+    """Each sample's distance to the nearest other sample of its condition: (B, K) from (B, K, K)."""
+    itself = torch.eye(distances.shape[-1], dtype=torch.bool)
+    return distances.masked_fill(itself, float("inf")).amin(dim=-1)
+
+
+def sampler_losses(model, sampler, initial, future, mask, limits, margins, config, generator=None):
+    """Weighted total and its parts for one batch; margins = (all-pairs hinge, nearest-sibling hinge) in metres."""
+    margin, duplicate_margin = margins
     count = config.samples
     prior_mean, prior_log_var, encoded = model.prior(initial, future * mask[..., None], mask)
     z, (mean, log_var) = sampler.latents(prior_mean, prior_log_var, count, generator)
@@ -59,24 +71,30 @@ def sampler_losses(model, sampler, initial, future, mask, limits, margin, config
     distances = pairwise_distances(motion)
     upper = torch.triu(torch.ones(count, count, dtype=torch.bool), diagonal=1)
     diversity = torch.relu(margin - distances[:, upper]).mean() / margin
+    duplicate = torch.relu(duplicate_margin - nearest_sibling_distances(distances)).mean() / duplicate_margin
     accuracy = ((motion - future[:, None]) ** 2).sum(-1).mean(dim=(2, 3)).min(dim=1).values.mean()
     kl = 0.5 * (mean ** 2 + torch.exp(log_var) - log_var - 1.0).mean()
     angles = realism.angle_limit_loss(motion, limits).mean()
     bones = ((realism.rigid_bone_lengths(motion) - realism.rigid_bone_lengths(initial)[:, None, None]) ** 2).mean()
-    total = (config.diversity_weight * diversity + config.accuracy_weight * accuracy + config.kl_weight * kl
-             + config.angle_weight * angles + config.bone_weight * bones)
-    parts = {"diversity": diversity.item(), "accuracy": accuracy.item(), "kl": kl.item(),
-             "angles": angles.item(), "bones": bones.item(), "min_dist": distances[:, upper].min().item()}
+    skating = realism.skating_loss(motion, clips.NATIVE_FPS)
+    total = (config.diversity_weight * diversity + config.duplicate_weight * duplicate
+             + config.accuracy_weight * accuracy + config.kl_weight * kl + config.angle_weight * angles
+             + config.bone_weight * bones + config.skating_weight * skating)
+    parts = {"diversity": diversity.item(), "duplicate": duplicate.item(), "accuracy": accuracy.item(),
+             "kl": kl.item(), "angles": angles.item(), "bones": bones.item(), "skating": skating.item(),
+             "min_dist": distances[:, upper].min().item()}
     return total, parts
 
 
 @torch.no_grad()
-def plain_apd(model, windows, count):
-    """Mean APD (DLow protocol) of plain prior sampling with no trajectories over windows (N, 1 + T, 17, 3)."""
+def plain_diversity(model, windows, count):
+    """Mean APD and MPD (DLow protocol) of plain prior sampling with no trajectories over windows
+    (N, 1 + T, 17, 3)."""
     initial, future = torch.from_numpy(windows[:, 0]), torch.from_numpy(windows[:, 1:])
     empty = torch.zeros(future.shape[:-1])
     motion = model.sample(initial, future * 0, empty, count, generator=torch.Generator().manual_seed(0))
-    return float(np.mean([metrics.apd(metrics.to_protocol(m)) for m in motion.numpy()]))
+    samples = [metrics.to_protocol(m) for m in motion.numpy()]
+    return float(np.mean([metrics.apd(s) for s in samples])), float(np.mean([metrics.mpd(s) for s in samples]))
 
 
 def main(argv=None):
@@ -105,8 +123,10 @@ def main(argv=None):
     frames = model.config.frames
     windows = WindowSampler(train_clips, frames)
     validation = dataset.windows(validation_clips, future=frames, stride=30)
-    margin = config.diversity_margin * plain_apd(model, validation[:64], config.samples)
-    print(f"hinge margin eta = {margin:.3f} m ({config.diversity_margin} x plain APD); "
+    plain_apd, plain_mpd = plain_diversity(model, validation[:64], config.samples)
+    margins = (config.diversity_margin * plain_apd, config.duplicate_margin * plain_mpd)
+    print(f"hinge margins: all pairs {margins[0]:.3f} m ({config.diversity_margin} x plain APD), "
+          f"nearest sibling {margins[1]:.3f} m ({config.duplicate_margin} x plain MPD); "
           f"{len(validation)} validation windows", flush=True)
 
     torch.manual_seed(config.seed)
@@ -126,7 +146,7 @@ def main(argv=None):
             motion = torch.from_numpy(validation)
             empty = torch.zeros(len(validation), frames, 17)
             total, parts = sampler_losses(model, sampler, motion[:, 0], motion[:, 1:], empty, limits,
-                                          margin, config, generator)
+                                          margins, config, generator)
         sampler.train()
         return total.item(), parts
 
@@ -141,7 +161,7 @@ def main(argv=None):
             group["lr"] = learning_rate(run.step, config)
         motion = torch.from_numpy(motion)
         total, parts = sampler_losses(model, sampler, motion[:, 0], motion[:, 1:], torch.from_numpy(mask),
-                                      limits, margin, config)
+                                      limits, margins, config)
         optimizer.zero_grad()
         total.backward()
         optimizer.step()
@@ -158,7 +178,7 @@ def main(argv=None):
                 run.best, marker = loss, " (best, saved)"
                 weights.save(args.out, sampler, sampler_config, {
                     "train": asdict(config), "step": run.step, "validation_loss": loss,
-                    "hinge_margin_m": margin, "training_minutes": run.elapsed / 60,
+                    "hinge_margins_m": margins, "training_minutes": run.elapsed / 60,
                     "parameters": parameter_count(sampler)})
             print(f"validation loss {loss:.4f} " + " ".join(f"{k} {v:.3f}" for k, v in parts.items()) + marker,
                   flush=True)
