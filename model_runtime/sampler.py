@@ -5,8 +5,8 @@ the initial pose and any trajectories) a network makes M basis vectors;
 Gumbel-softmax weights combine them into points; a second network maps each
 point to a Gaussian in the prior's standardised latent space:
 z = mu_prior + sigma_prior * (mean_k + sigma_k * eps). The frozen decoder
-turns each z into a motion. Any number of samples at inference; at
-inference N variants are picked from a larger pool (``selection``).
+turns each z into a motion. Any number of samples; N variants are picked
+from a larger pool (``selection``).
 """
 
 from dataclasses import asdict, dataclass
