@@ -40,8 +40,11 @@ class _Weights:
     def __init__(self, arrays):
         self.arrays = arrays
 
-    def linear(self, prefix, x):
-        return x @ self.arrays[prefix + ".weight"].T + self.arrays[prefix + ".bias"]
+    def linear(self, prefix, x, weight=".weight", bias=".bias"):
+        """One 2-D matrix product for any leading shape (a stacked product loops over the batch)."""
+        matrix = self.arrays[prefix + weight]
+        flat = x.reshape(-1, x.shape[-1]) @ matrix.T + self.arrays[prefix + bias]
+        return flat.reshape(*x.shape[:-1], matrix.shape[0])
 
     def layer_norm(self, prefix, x, eps=1e-5):
         mean = x.mean(-1, keepdims=True)
@@ -70,9 +73,8 @@ class _Weights:
         return x
 
     def _attention(self, prefix, x, heads):
-        a = self.arrays
         batch, tokens, width = x.shape
-        qkv = x @ a[prefix + ".in_proj_weight"].T + a[prefix + ".in_proj_bias"]
+        qkv = self.linear(prefix, x, ".in_proj_weight", ".in_proj_bias")
         q, k, v = (part.reshape(batch, tokens, heads, width // heads).transpose(0, 2, 1, 3)
                    for part in np.split(qkv, 3, axis=-1))
         scores = q @ k.transpose(0, 1, 3, 2) / np.sqrt(width // heads)
