@@ -46,16 +46,20 @@ def test_samples_start_at_the_initial_pose_and_differ(model, validation_windows)
 
 
 def test_given_trajectories_are_followed(model, validation_windows):
-    """Conditioning on the four trajectories brings those joints far closer than none."""
+    """Conditioning on the four trajectories brings those joints far closer than none, in the
+    decoder's own output (samples then set them exactly, so those are not what is measured)."""
     initial = torch.from_numpy(validation_windows[:, 0])
     future = validation_windows[:, 1:]
     mask = masks.evaluation_mask(4, 60)
     errors = {}
     for k in (0, 4):
         known = torch.from_numpy(np.broadcast_to(masks.evaluation_mask(k, 60), (len(future), 60, 17)).copy())
-        motion = model.sample(initial, torch.from_numpy(future) * known[..., None], known, 1, use_mean=True)
-        errors[k] = metrics.trajectory_error(motion[:, 0].numpy(), future, mask)
-    print(f"trajectory error of the conditioned joints: {errors}")
+        with torch.no_grad():
+            prior_mean, _, encoded = model.prior(initial, torch.from_numpy(future) * known[..., None], known)
+            motion = model.decode(prior_mean, encoded)
+        errors[k] = metrics.trajectory_error(motion.numpy(), future, mask)
+    print(f"decoder's trajectory error of the conditioned joints: {errors}")
+    assert errors[4] < 0.1
     assert errors[4] < 0.5 * errors[0]  # the product then puts them on the curves exactly (limb solve)
 
 
