@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from .skeleton import JOINT_INDEX, PARENTS, RIGID_BONE_JOINTS, indices
+from .skeleton import FEET, FLOOR_CONTACT_M, JOINT_INDEX, ankle_speed_on_floor, indices, rigid_bone_lengths
 
 ANGLE_LIMITS = Path(__file__).resolve().parents[1] / "assets" / "angle_limits.json"
 ANGLE_NAMES = (
@@ -82,13 +82,6 @@ def angle_limit_loss(poses, limits):
     return (angle_excess(poses, limits) ** 2).sum(-1)
 
 
-def rigid_bone_lengths(poses):
-    """Lengths (..., 11) of the bones rigid in every rig."""
-    child = indices(RIGID_BONE_JOINTS)
-    parent = [PARENTS[c] for c in child]
-    return torch.linalg.norm(poses[..., child, :] - poses[..., parent, :], dim=-1)
-
-
 def share_outside_limits(motion, limits, tolerance=1e-3):
     """Share of frames (motion (..., T, 17, 3)) with any angle outside its range."""
     excess = angle_excess(torch.as_tensor(motion, dtype=torch.float64), limits)
@@ -97,27 +90,22 @@ def share_outside_limits(motion, limits, tolerance=1e-3):
 
 def bone_length_deviation(motion, initial):
     """Mean absolute deviation (m) of rigid bone lengths in motion (..., T, 17, 3) from initial (..., 17, 3)."""
-    motion, initial = (torch.from_numpy(np.array(a, dtype=np.float64)) for a in (motion, initial))
-    return float((rigid_bone_lengths(motion) - rigid_bone_lengths(initial)[..., None, :]).abs().mean())
+    motion, initial = (np.asarray(a, dtype=np.float64) for a in (motion, initial))
+    return float(np.abs(rigid_bone_lengths(motion) - rigid_bone_lengths(initial)[..., None, :]).mean())
 
 
-def skating_loss(motion, fps, contact_m=0.05, softness_m=0.01):
+def skating_loss(motion, fps, contact_m=FLOOR_CONTACT_M, softness_m=0.01):
     """Differentiable ``foot_skating``: mean squared horizontal ankle speed ((m/s)^2) weighted by a
     soft contact (sigmoid of the height above the lowest ankle height) for motion (..., T, 17, 3)."""
-    feet = motion[..., indices(("RFoot", "LFoot")), :]
+    feet = motion[..., indices(FEET), :]
     speed = torch.linalg.norm(torch.diff(feet[..., :2], dim=-3), dim=-1) * fps
     lowest = feet[..., 2].amin(dim=-2, keepdim=True).detach()
     contact = torch.sigmoid((lowest + contact_m - feet[..., 1:, :, 2]) / softness_m)
     return (contact * speed ** 2).sum() / contact.sum().clamp_min(1e-6)
 
 
-def foot_skating(motion, fps, contact_m=0.05):
-    """Mean horizontal ankle speed (m/s) on frames where the ankle is within ``contact_m``
-    of its lowest height in the motion (ankles sit above the sole, so the floor is the
-    motion's own lowest ankle height). motion (..., T, 17, 3)."""
-    feet = np.asarray(motion, np.float64)[..., indices(("RFoot", "LFoot")), :]  # (..., T, 2, 3)
-    speed = np.linalg.norm(np.diff(feet[..., :2], axis=-3), axis=-1) * fps  # (..., T-1, 2)
-    height = feet[..., 1:, :, 2]
-    lowest = feet[..., :, :, 2].min(axis=-2, keepdims=True)
-    contact = height < lowest + contact_m
+def foot_skating(motion, fps, contact_m=FLOOR_CONTACT_M):
+    """Mean horizontal ankle speed (m/s) over the frames of motion (..., T, 17, 3) where an ankle is
+    on the floor (``skeleton.ankle_speed_on_floor``)."""
+    speed, contact = ankle_speed_on_floor(motion, fps, contact_m)
     return float(speed[contact].mean()) if contact.any() else 0.0

@@ -11,12 +11,12 @@ the minimum pairwise distance greedily. numpy only, so Blender needs no torch.
 
 import numpy as np
 
+from . import metrics
 from .data.clips import NATIVE_FPS
-from .skeleton import PARENTS, RIGID_BONE_JOINTS, indices
+from .skeleton import ankle_speed_on_floor, rigid_bone_lengths
 
 POOL_FACTOR = 3  # candidates drawn per variant asked for
 SCREENED_SHARE = 1.0 / 3.0  # least plausible share of the pool dropped before selection
-CONTACT_M = 0.05  # an ankle this close to its lowest height counts as on the floor
 
 
 def _relative(values):
@@ -30,16 +30,8 @@ def implausibility(candidates, initial, given=None, known=None):
     candidates (P, T, 17, 3) in metres at the model rate, as decoded (not yet pinned); initial
     (17, 3) holds the rig's bone lengths; given (T, 17, 3) and known (T, 17) as the model's input.
     """
-    child = indices(RIGID_BONE_JOINTS)
-    parent = [PARENTS[c] for c in child]
-
-    def lengths(poses):
-        return np.linalg.norm(poses[..., child, :] - poses[..., parent, :], axis=-1)
-
-    bones = np.abs(lengths(candidates) - lengths(initial)).mean(axis=(1, 2))
-    feet = candidates[:, :, indices(("RFoot", "LFoot")), :]  # (P, T, 2, 3)
-    speed = np.linalg.norm(np.diff(feet[..., :2], axis=1), axis=-1) * NATIVE_FPS  # (P, T-1, 2)
-    contact = feet[:, 1:, :, 2] < feet[..., 2].min(axis=1, keepdims=True) + CONTACT_M
+    bones = np.abs(rigid_bone_lengths(candidates) - rigid_bone_lengths(initial)).mean(axis=(1, 2))
+    speed, contact = ankle_speed_on_floor(candidates, NATIVE_FPS)  # (P, T-1, 2) each
     sliding = (speed * contact).sum(axis=(1, 2)) / np.maximum(contact.sum(axis=(1, 2)), 1)
     cost = _relative(bones) + _relative(sliding)
     if known is not None and known.any():
@@ -51,7 +43,7 @@ def implausibility(candidates, initial, given=None, known=None):
 def farthest_points(candidates, count, first=0):
     """Indices (count,) of candidates (P, T, 17, 3) chosen greedily to maximise the minimum pairwise
     distance, in the DLow protocol (root-relative poses), starting from ``first``."""
-    relative = (candidates[..., 1:, :] - candidates[..., :1, :]).reshape(len(candidates), -1).astype(np.float64)
+    relative = metrics.to_protocol(candidates).reshape(len(candidates), -1)
     chosen = [first]
     nearest = np.linalg.norm(relative - relative[first], axis=1)
     for _ in range(count - 1):

@@ -34,6 +34,7 @@ FEET = ("RFoot", "LFoot")
 RIGID_BONE_JOINTS = ("RHip", "RKnee", "RFoot", "LHip", "LKnee", "LFoot", "Head",
                      "LElbow", "LWrist", "RElbow", "RWrist")
 UP_AXIS = np.array([0.0, 0.0, 1.0])
+FLOOR_CONTACT_M = 0.05  # an ankle this close to its lowest height in a motion is on the floor
 
 
 def indices(names):
@@ -55,6 +56,24 @@ def bone_lengths(positions):
     child = np.arange(1, NUM_JOINTS)
     parent = np.array(PARENTS[1:])
     return np.linalg.norm(positions[..., child, :] - positions[..., parent, :], axis=-1)
+
+
+def rigid_bone_lengths(poses):
+    """Lengths (..., 11) of the ``RIGID_BONE_JOINTS`` bones of poses (..., 17, 3), numpy or torch
+    (differentiable), so training losses, metrics and the torch-free add-on share one definition."""
+    child = indices(RIGID_BONE_JOINTS)
+    offsets = poses[..., child, :] - poses[..., [PARENTS[c] for c in child], :]
+    return (offsets ** 2).sum(-1) ** 0.5
+
+
+def ankle_speed_on_floor(motion, fps, contact_m=FLOOR_CONTACT_M):
+    """Horizontal ankle speed (m/s) and floor contact, each (..., T-1, 2), of motion (..., T, 17, 3)
+    in metres: contact where an ankle is within ``contact_m`` of its lowest height in the motion
+    (ankles sit above the sole, so the floor is the motion's own lowest ankle height)."""
+    feet = np.asarray(motion, np.float64)[..., indices(FEET), :]  # (..., T, 2, 3)
+    speed = np.linalg.norm(np.diff(feet[..., :2], axis=-3), axis=-1) * fps
+    contact = feet[..., 1:, :, 2] < feet[..., 2].min(axis=-2, keepdims=True) + contact_m
+    return speed, contact
 
 
 def facing(positions):

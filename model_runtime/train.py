@@ -18,7 +18,7 @@ import torch
 from . import augment, checkpoints, masks, weights
 from .data import dataset
 from .model import ModelConfig, TrajeVAE, kl_divergence, parameter_count
-from .realism import rigid_bone_lengths
+from .skeleton import rigid_bone_lengths
 
 
 @dataclass(frozen=True)

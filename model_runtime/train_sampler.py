@@ -24,6 +24,7 @@ from . import augment, checkpoints, masks, metrics, realism, weights
 from .data import clips, dataset
 from .model import parameter_count, repeat_encoded
 from .sampler import DiverseSampler, SamplerConfig
+from .skeleton import rigid_bone_lengths
 from .train import WindowSampler, learning_rate
 
 @dataclass(frozen=True)
@@ -75,7 +76,7 @@ def sampler_losses(model, sampler, initial, future, mask, limits, margins, confi
     accuracy = ((motion - future[:, None]) ** 2).sum(-1).mean(dim=(2, 3)).min(dim=1).values.mean()
     kl = 0.5 * (mean ** 2 + torch.exp(log_var) - log_var - 1.0).mean()
     angles = realism.angle_limit_loss(motion, limits).mean()
-    bones = ((realism.rigid_bone_lengths(motion) - realism.rigid_bone_lengths(initial)[:, None, None]) ** 2).mean()
+    bones = ((rigid_bone_lengths(motion) - rigid_bone_lengths(initial)[:, None, None]) ** 2).mean()
     skating = realism.skating_loss(motion, clips.NATIVE_FPS)
     total = (config.diversity_weight * diversity + config.duplicate_weight * duplicate
              + config.accuracy_weight * accuracy + config.kl_weight * kl + config.angle_weight * angles
