@@ -63,8 +63,9 @@ def score(motions, windows, mask, groups, limits):
         samples = metrics.to_protocol(motions[n])
         ade, fde = metrics.ade_fde(samples, truth[n])
         mmade, mmfde = metrics.multimodal_ade_fde(samples, truth[groups[n]])
-        rows.append((metrics.apd(samples), ade, fde, mmade, mmfde,
-                     metrics.trajectory_error(motions[n], windows[n, 1:][None], mask), metrics.mpd(samples)))
+        apd, mpd = metrics.diversity(samples)
+        rows.append((apd, ade, fde, mmade, mmfde, metrics.trajectory_error(motions[n], windows[n, 1:][None], mask),
+                     mpd))
     rows = np.array(rows, dtype=np.float64)
     means = list(np.nanmean(rows, axis=0)) if mask.any() else list(rows.mean(axis=0))
     means += realism_figures(motions, windows, limits)

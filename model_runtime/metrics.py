@@ -14,23 +14,22 @@ def to_protocol(motion):
     return relative.reshape(*relative.shape[:-2], -1)
 
 
-def apd(samples):
-    """Mean pairwise L2 distance between K samples (K, T, 48), each flattened; 0 for K = 1."""
+def pairwise_distances(samples):
+    """L2 distances (K, K) between K samples (K, T, 48), each flattened: one matrix product."""
     flat = samples.reshape(len(samples), -1)
-    if len(flat) < 2:
-        return 0.0
-    distances = np.sqrt(np.maximum(_squared_distances(flat), 0.0))
-    return float(distances.sum() / (len(flat) * (len(flat) - 1)))
+    return np.sqrt(np.maximum(_squared_distances(flat), 0.0))
 
 
-def mpd(samples):
-    """Minimum pairwise L2 distance among K samples (K, T, 48): near-duplicates score 0."""
-    flat = samples.reshape(len(samples), -1)
-    if len(flat) < 2:
-        return 0.0
-    squared = _squared_distances(flat)
-    np.fill_diagonal(squared, np.inf)
-    return float(np.sqrt(max(squared.min(), 0.0)))
+def diversity(samples):
+    """(APD, MPD) of K samples (K, T, 48): mean and minimum pairwise distance; near-duplicates give
+    MPD 0; both 0 for K = 1."""
+    if len(samples) < 2:
+        return 0.0, 0.0
+    distances = pairwise_distances(samples)
+    count = len(samples)
+    apd = distances.sum() / (count * (count - 1))
+    np.fill_diagonal(distances, np.inf)
+    return float(apd), float(distances.min())
 
 
 def ade_fde(samples, truth):

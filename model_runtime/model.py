@@ -29,6 +29,8 @@ from torch import nn
 from .dct import dct_matrix
 from .skeleton import NUM_JOINTS
 
+DECODE_CHUNK = 128  # sequences decoded at once
+
 
 @dataclass(frozen=True)
 class ModelConfig:
@@ -137,7 +139,15 @@ class TrajeVAE(nn.Module):
         return torch.cat([relative.flatten(2), steps.flatten(2), mask], dim=-1)
 
     def decode(self, z, encoded):
-        """Poses (B, T, J, 3) from latents (B, K, latent) and the encoded condition of ``prior``."""
+        """Poses (B, T, J, 3) from latents (B, K, latent) and the encoded condition of ``prior``.
+
+        Large batches go in chunks of ``DECODE_CHUNK``: on the CPU that keeps attention in cache
+        (2400 sequences at once ran 1.6-2x slower than in chunks of 100-200).
+        """
+        if len(z) > DECODE_CHUNK:
+            return torch.cat([self.decode(z[start:start + DECODE_CHUNK],
+                                          tuple(part[start:start + DECODE_CHUNK] for part in encoded))
+                              for start in range(0, len(z), DECODE_CHUNK)])
         initial, condition, pose_code, given = encoded
         in_time = torch.einsum("kt,bkl->btl", self.dct, z)
         frames = torch.cat([in_time, condition, pose_code[:, None].expand(-1, in_time.shape[1], -1), given],

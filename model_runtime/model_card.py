@@ -44,8 +44,8 @@ baseline below does the same).
 ## Data
 Real optical motion capture in ../shared/mocap (CMU and ACCAD), 17 canonical joints.
 Validation subjects, never trained on: {', '.join(meta['validation_subjects'])}.
-Model selection used the validation subjects only (prior-mean joint error over the
-evaluation masks k = 0..4).
+Model selection used the validation subjects only (best-of-10 ADE of prior samples
+over the evaluation masks k = 0..4).
 
 {ATTRIBUTION}
 
@@ -53,12 +53,13 @@ evaluation masks k = 0..4).
 {json.dumps(config, indent=1)}
 
 Parameters: {meta['parameters']:,}. Training: {train['steps']} steps planned, batch
-{train['batch']}, Adam (lr {train['learning_rate']}, warm-up then cosine), beta
+{train['batch']}, Adam (lr {train['learning_rate']}, warm-up then cosine cycles of {train['cycle']} steps
+with warm restarts at {train['restart_peak']} x the previous peak), beta
 {train['beta']}, bone-length weight {train['bone_weight']}, random turns about Z and
 mirroring, seed {train['seed']}; masks mix the paper's Bernoulli trajectories
 (p = 0.85 masked), the evaluation order, sparse keys, end poses and partial curves.
 Best checkpoint at step {meta['step']} after {meta['training_minutes']:.0f} minutes on 2 CPU
-cores; validation prior-mean joint error {meta['validation_error_m']:.4f} m.
+cores; validation best-of-10 ADE {meta['validation_ade_m']:.4f} m.
 
 ## Evaluation
 {evaluation['windows']} validation windows, K = {evaluation.get('samples', 50)} samples,

@@ -43,13 +43,13 @@ def implausibility(candidates, initial, given=None, known=None):
 def farthest_points(candidates, count, first=0):
     """Indices (count,) of candidates (P, T, 17, 3) chosen greedily to maximise the minimum pairwise
     distance, in the DLow protocol (root-relative poses), starting from ``first``."""
-    relative = metrics.to_protocol(candidates).reshape(len(candidates), -1)
+    distances = metrics.pairwise_distances(metrics.to_protocol(candidates))
     chosen = [first]
-    nearest = np.linalg.norm(relative - relative[first], axis=1)
+    nearest = distances[first].copy()
     for _ in range(count - 1):
         pick = int(np.argmax(nearest))
         chosen.append(pick)
-        nearest = np.minimum(nearest, np.linalg.norm(relative - relative[pick], axis=1))
+        nearest = np.minimum(nearest, distances[pick])
     return np.array(chosen)
 
 

@@ -95,7 +95,7 @@ def plain_diversity(model, windows, count):
     empty = torch.zeros(future.shape[:-1])
     motion = model.sample(initial, future * 0, empty, count, generator=torch.Generator().manual_seed(0))
     samples = [metrics.to_protocol(m) for m in motion.numpy()]
-    return float(np.mean([metrics.apd(s) for s in samples])), float(np.mean([metrics.mpd(s) for s in samples]))
+    return tuple(float(value) for value in np.mean([metrics.diversity(s) for s in samples], axis=0))
 
 
 def main(argv=None):
@@ -159,7 +159,7 @@ def main(argv=None):
         mask = masks.sample_training_masks(config.batch, frames, rng)
         mask[rng.random(config.batch) < config.empty_mask_share] = 0.0
         for group in optimizer.param_groups:
-            group["lr"] = learning_rate(run.step, config)
+            group["lr"] = learning_rate(run.step, config.learning_rate, config.warmup, config.steps)
         motion = torch.from_numpy(motion)
         total, parts = sampler_losses(model, sampler, motion[:, 0], motion[:, 1:], torch.from_numpy(mask),
                                       limits, margins, config)

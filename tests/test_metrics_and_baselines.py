@@ -20,9 +20,10 @@ def test_apd_mpd_ade_fde_by_hand():
     samples = np.stack([near, far])
     assert metrics.ade_fde(samples, truth) == pytest.approx((np.linalg.norm(near[0]),) * 2)
     distance = np.linalg.norm((far - near).ravel())
-    assert np.isclose(metrics.apd(samples), distance)
-    assert metrics.mpd(np.stack([near, near, far])) == pytest.approx(0.0, abs=1e-6)
-    assert metrics.apd(samples[:1]) == 0.0
+    assert metrics.diversity(samples) == pytest.approx((distance, distance))
+    apd, mpd = metrics.diversity(np.stack([near, near, far]))
+    assert mpd == pytest.approx(0.0, abs=1e-6) and apd == pytest.approx(4 * distance / 6)
+    assert metrics.diversity(samples[:1]) == (0.0, 0.0)
 
 
 def test_multimodal_averages_over_pseudo_truths():

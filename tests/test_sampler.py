@@ -36,8 +36,8 @@ def test_sampler_variants_differ_more_than_plain_sampling_and_stay_plausible(win
     for name, motion in (("plain", plain), ("sampler", diverse)):
         protocol = [metrics.to_protocol(m) for m in motion]
         starts = np.broadcast_to(initial[:, None], motion.shape[:2] + initial.shape[1:])
-        figures[name] = {"APD": np.mean([metrics.apd(p) for p in protocol]),
-                         "MPD": np.mean([metrics.mpd(p) for p in protocol]),
+        apd, mpd = np.mean([metrics.diversity(p) for p in protocol], axis=0)
+        figures[name] = {"APD": apd, "MPD": mpd,
                          "bone_dev": realism.bone_length_deviation(motion, starts)}
     print(figures)
     assert figures["sampler"]["APD"] > 1.3 * figures["plain"]["APD"]

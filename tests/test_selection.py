@@ -19,8 +19,8 @@ def pool(all_clips, manifest):
 
 def test_farthest_points_beat_a_plain_draw_on_the_closest_pair(pool):
     candidates, _ = pool
-    plain = metrics.mpd(metrics.to_protocol(candidates[:4]))
-    picked = metrics.mpd(metrics.to_protocol(candidates[selection.farthest_points(candidates, 4)]))
+    plain = metrics.diversity(metrics.to_protocol(candidates[:4]))[1]
+    picked = metrics.diversity(metrics.to_protocol(candidates[selection.farthest_points(candidates, 4)]))[1]
     assert picked > plain
     assert len(set(selection.farthest_points(candidates, 12).tolist())) == 12
 
