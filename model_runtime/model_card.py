@@ -6,7 +6,7 @@ import json
 import sys
 from pathlib import Path
 
-from . import weights
+from . import selection, weights
 from .data import clips, dataset
 from .evaluate import METRICS
 
@@ -70,7 +70,8 @@ bone-length deviation from the initial pose (m), angle_out = share of frames out
 the joint-angle limits fitted on the training poses, skating = mean horizontal foot
 speed while the foot is within 5 cm of the floor (m/s). "sampler" is the diverse
 Gumbel-softmax sampler over the frozen model (assets/sampler.npz), its K variants
-picked from 3K draws (the least plausible third dropped, then farthest points).
+picked from {selection.POOL_FACTOR}K draws (the least plausible {selection.SCREENED_SHARE:.0%} dropped, then
+farthest points).
 k = number of trajectories given, in the order RFoot, LFoot, RWrist, LWrist.
 Run in {evaluation['seconds']:.0f} s with `python -m model_runtime.evaluate`.
 

@@ -240,7 +240,7 @@ def infer(job, on_progress=None):
             raise Cancelled()
 
     # The diverse sampler where nothing is given; with curves or keys the prior's own samples follow
-    # them more closely and cost a third of the sampler's pool.
+    # them more closely and skip the sampler's larger pool of draws.
     sampler = None if job.mask.any() else inference.sampler()
     motion = generation.generate(inference.model(), job.initial, job.trajectories, job.mask, job.count,
                                  np.random.default_rng(job.seed), job.diversity, sampler, progress=step)
