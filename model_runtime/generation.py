@@ -79,7 +79,7 @@ def _window(model, initial, trajectories, mask, count, rng, diversity, sampler):
     return motion + shift[:, None, None]
 
 
-def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, sampler=None, overlap=10,
+def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, sampler=None, overlap=15,
              progress=None):
     """``count`` motions (count, 1 + T, 17, 3) in the model frame, initial pose first.
 

@@ -37,11 +37,11 @@ class SamplerTrainConfig:
     diversity_margin: float = 2.0  # hinge threshold eta, in multiples of plain sampling's APD
     diversity_weight: float = 1.0
     duplicate_margin: float = 2.5  # nearest-sibling hinge, in multiples of plain sampling's MPD
-    duplicate_weight: float = 10.0
+    duplicate_weight: float = 40.0
     accuracy_weight: float = 100.0
     kl_weight: float = 1.0
     angle_weight: float = 100.0
-    bone_weight: float = 1000.0
+    bone_weight: float = 3000.0
     skating_weight: float = 10.0
     empty_mask_share: float = 0.5
     seed: int = 0

@@ -41,7 +41,7 @@ def test_sampler_variants_differ_more_than_plain_sampling_and_stay_plausible(win
                          "bone_dev": realism.bone_length_deviation(motion, starts)}
     print(figures)
     assert figures["sampler"]["APD"] > 1.3 * figures["plain"]["APD"]
-    assert figures["sampler"]["MPD"] > 1.25 * figures["plain"]["MPD"]  # issue 4 asks 2x: see the model card
+    assert figures["sampler"]["MPD"] > 2.0 * figures["plain"]["MPD"]  # near-duplicates are gone
     assert figures["sampler"]["bone_dev"] < 1.2 * figures["plain"]["bone_dev"] + 0.005
 
 
