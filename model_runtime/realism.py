@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from .skeleton import FEET, FLOOR_CONTACT_M, JOINT_INDEX, ankle_speed_on_floor, indices, rigid_bone_lengths
+from .skeleton import FEET, FLOOR_CONTACT_M, JOINT_INDEX, indices, rigid_bone_lengths
 
 ANGLE_LIMITS = Path(__file__).resolve().parents[1] / "assets" / "angle_limits.json"
 ANGLE_NAMES = (
@@ -106,6 +106,9 @@ def skating_loss(motion, fps, contact_m=FLOOR_CONTACT_M, softness_m=0.01):
 
 def foot_skating(motion, fps, contact_m=FLOOR_CONTACT_M):
     """Mean horizontal ankle speed (m/s) over the frames of motion (..., T, 17, 3) where an ankle is
-    on the floor (``skeleton.ankle_speed_on_floor``)."""
-    speed, contact = ankle_speed_on_floor(motion, fps, contact_m)
+    within ``contact_m`` of its lowest height in the motion (ankles sit above the sole, so the floor
+    is the motion's own lowest ankle height)."""
+    feet = np.asarray(np.asarray(motion)[..., indices(FEET), :], np.float64)  # (..., T, 2, 3): ankles only
+    speed = np.linalg.norm(np.diff(feet[..., :2], axis=-3), axis=-1) * fps
+    contact = feet[..., 1:, :, 2] < feet[..., 2].min(axis=-2, keepdims=True) + contact_m
     return float(speed[contact].mean()) if contact.any() else 0.0

@@ -66,16 +66,6 @@ def rigid_bone_lengths(poses):
     return (offsets ** 2).sum(-1) ** 0.5
 
 
-def ankle_speed_on_floor(motion, fps, contact_m=FLOOR_CONTACT_M):
-    """Horizontal ankle speed (m/s) and floor contact, each (..., T-1, 2), of motion (..., T, 17, 3)
-    in metres: contact where an ankle is within ``contact_m`` of its lowest height in the motion
-    (ankles sit above the sole, so the floor is the motion's own lowest ankle height)."""
-    feet = np.asarray(motion, np.float64)[..., indices(FEET), :]  # (..., T, 2, 3)
-    speed = np.linalg.norm(np.diff(feet[..., :2], axis=-3), axis=-1) * fps
-    contact = feet[..., 1:, :, 2] < feet[..., 2].min(axis=-2, keepdims=True) + contact_m
-    return speed, contact
-
-
 def facing(positions):
     """Unit forward direction in the ground plane: (..., J, 3) -> (..., 3)."""
     positions = np.asarray(positions)
