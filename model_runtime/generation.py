@@ -21,6 +21,10 @@ from .skeleton import JOINT_INDEX
 TRAINED_LEG_LENGTH_M = (0.79, 0.89)
 TYPICAL_LEG_LENGTH_M = 0.81
 
+# Model frames shared by consecutive windows (at 30 fps); 10 left the joins at the motion's own 95th
+# percentile of speed change, 15 well inside it.
+WINDOW_OVERLAP = 15
+
 
 def leg_length(pose):
     """Mean hip-knee-ankle length of both legs of a pose (17, 3)."""
@@ -79,7 +83,7 @@ def _window(model, initial, trajectories, mask, count, rng, diversity, sampler):
     return motion + shift[:, None, None]
 
 
-def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, sampler=None, overlap=15,
+def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, sampler=None, overlap=WINDOW_OVERLAP,
              progress=None):
     """``count`` motions (count, 1 + T, 17, 3) in the model frame, initial pose first.
 

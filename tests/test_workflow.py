@@ -9,8 +9,9 @@ from mathutils import Quaternion
 
 import blender_rigs
 import trajevae_addon
+from model_runtime import generation
 from model_runtime.skeleton import JOINT_INDEX
-from trajevae_addon import api, pipeline, rig_state
+from trajevae_addon import api, inference, pipeline, rig_state
 
 
 @pytest.fixture(autouse=True)
@@ -72,8 +73,8 @@ def test_a_300_frame_shot_has_no_seams_and_curves_are_followed_within_a_centimet
     motion = job.motion  # (3, 300, 17, 3) world, scene rate
     speed = np.linalg.norm(np.diff(motion, axis=1), axis=-1).mean(axis=-1)  # (3, 299) mean joint step
     jump = np.abs(np.diff(speed, axis=1))  # change of speed from frame to frame
-    window, overlap = 60, 15
-    joins_model = np.arange(window, len(job.trajectories), window - overlap)
+    window = inference.model().frames
+    joins_model = np.arange(window, len(job.trajectories), window - generation.WINDOW_OVERLAP)
     joins = np.round(joins_model * 24 / 30).astype(int)
     at_joins = jump[:, np.clip(joins - 1, 0, jump.shape[1] - 1)].mean()
     print(f"300 frames: speed change at joins {at_joins * 1000:.2f} mm/frame vs {jump.mean() * 1000:.2f} overall "
