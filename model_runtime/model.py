@@ -116,10 +116,19 @@ class TrajeVAE(nn.Module):
     def prior(self, initial, trajectories, mask):
         """p(z | trajectories, mask, initial pose): mean and log_var (B, K, latent), and the encoded
         condition that ``decode`` takes (repeat it per sample with ``repeat_encoded``)."""
+        return self._prior(initial, trajectories, mask)[:3]
+
+    def _prior(self, initial, trajectories, mask):
+        """``prior``'s three results and the initial pose's code (B, W/2), which the posterior shares."""
         pose_code = self.pose_encoder(initial.flatten(1))
         condition = self._frame_codes(trajectories, mask)
         mean, log_var = self._distribution(condition, pose_code, self.prior_transformer, self.prior_head)
-        return mean, log_var, (initial, condition, pose_code, self.given_steps(initial, trajectories, mask))
+        given = self.given_steps(initial, trajectories, mask)
+        frames = torch.cat([condition, pose_code[:, None].expand(-1, condition.shape[1], -1), given], dim=-1)
+        first = self.decoder_input[0]
+        condition_term = nn.functional.linear(frames, first.weight[:, self.config.latent:], first.bias)
+        steps = given[..., NUM_JOINTS * 3:NUM_JOINTS * 6].unflatten(-1, (NUM_JOINTS, 3))
+        return mean, log_var, (initial, condition_term, steps), pose_code
 
     def posterior(self, initial, future, mask, pose_code):
         """q(z | future poses with the known joints hidden): (mean, log_var)."""
@@ -141,26 +150,26 @@ class TrajeVAE(nn.Module):
     def decode(self, z, encoded):
         """Poses (B, T, J, 3) from latents (B, K, latent) and the encoded condition of ``prior``.
 
-        Large batches go in chunks of ``DECODE_CHUNK``: on the CPU that keeps attention in cache
-        (2400 sequences at once ran 1.6-2x slower than in chunks of 100-200).
+        The condition's share of the decoder's first layer comes with ``encoded``, computed once per
+        condition rather than once per sample. Large batches go in chunks of ``DECODE_CHUNK``: on
+        the CPU that keeps attention in cache (2400 sequences at once ran 1.6-2x slower than in
+        chunks of 100-200).
         """
         if len(z) > DECODE_CHUNK:
             return torch.cat([self.decode(z[start:start + DECODE_CHUNK],
                                           tuple(part[start:start + DECODE_CHUNK] for part in encoded))
                               for start in range(0, len(z), DECODE_CHUNK)])
-        initial, condition, pose_code, given = encoded
+        initial, condition_term, steps = encoded
         in_time = torch.einsum("kt,bkl->btl", self.dct, z)
-        frames = torch.cat([in_time, condition, pose_code[:, None].expand(-1, in_time.shape[1], -1), given],
-                           dim=-1)
-        hidden = self.decoder_transformer(self.decoder_input(frames) + self.time_code)
-        steps = given[..., NUM_JOINTS * 3:NUM_JOINTS * 6].unflatten(-1, (NUM_JOINTS, 3))
+        first = nn.functional.linear(in_time, self.decoder_input[0].weight[:, :self.config.latent]) + condition_term
+        hidden = self.decoder_transformer(self.decoder_input[1:](first) + self.time_code)
         offsets = self.decoder_output(hidden).view(*hidden.shape[:2], NUM_JOINTS, 3) + steps
         return initial[:, None] + torch.cumsum(offsets, dim=1)
 
     def forward(self, initial, future, mask):
         """Training pass: (reconstruction (B, T, J, 3), prior (mean, log_var), posterior (mean, log_var))."""
-        prior_mean, prior_log_var, encoded = self.prior(initial, future * mask[..., None], mask)
-        post_mean, post_log_var = self.posterior(initial, future, mask, encoded[2])
+        prior_mean, prior_log_var, encoded, pose_code = self._prior(initial, future * mask[..., None], mask)
+        post_mean, post_log_var = self.posterior(initial, future, mask, pose_code)
         z = post_mean + torch.randn_like(post_mean) * torch.exp(0.5 * post_log_var)
         return (self.decode(z, encoded),
                 (prior_mean, prior_log_var), (post_mean, post_log_var))

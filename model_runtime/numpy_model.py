@@ -41,9 +41,12 @@ class _Weights:
         self.arrays = arrays
 
     def linear(self, prefix, x, weight=".weight", bias=".bias"):
-        """One 2-D matrix product for any leading shape (a stacked product loops over the batch)."""
+        """One 2-D matrix product for any leading shape (a stacked product loops over the batch);
+        ``bias`` None for none."""
         matrix = self.arrays[prefix + weight]
-        flat = x.reshape(-1, x.shape[-1]) @ matrix.T + self.arrays[prefix + bias]
+        flat = x.reshape(-1, x.shape[-1]) @ matrix.T
+        if bias is not None:
+            flat += self.arrays[prefix + bias]
         return flat.reshape(*x.shape[:-1], matrix.shape[0])
 
     def layer_norm(self, prefix, x, eps=1e-5):
@@ -56,10 +59,10 @@ class _Weights:
         return ((x - a[prefix + ".running_mean"]) / np.sqrt(a[prefix + ".running_var"] + eps)
                 * a[prefix + ".weight"] + a[prefix + ".bias"])
 
-    def mlp(self, prefix, x, final_norm=True):
-        """Linear, LayerNorm, LeakyReLU, Linear[, LayerNorm, LeakyReLU] (model._mlp)."""
+    def mlp(self, prefix, x):
+        """Linear, LayerNorm, LeakyReLU, Linear, LayerNorm, LeakyReLU (model._mlp)."""
         x = self.linear(prefix + ".3", _leaky(self.layer_norm(prefix + ".1", self.linear(prefix + ".0", x))))
-        return _leaky(self.layer_norm(prefix + ".4", x)) if final_norm else x
+        return _leaky(self.layer_norm(prefix + ".4", x))
 
     def transformer(self, prefix, x, heads):
         """Pre-norm transformer encoder layers (batch_first, ReLU feed-forward) on (B, N, W)."""
@@ -89,6 +92,9 @@ class NumpyTrajeVAE:
     def __init__(self, path):
         arrays, self.meta = _load(path)
         self.config = self.meta["config"]
+        first, latent = arrays["decoder_input.0.weight"], self.config["latent"]  # split as in model.TrajeVAE.prior
+        arrays["decoder_input.0.weight_latent"] = np.ascontiguousarray(first[:, :latent])
+        arrays["decoder_input.0.weight_condition"] = np.ascontiguousarray(first[:, latent:])
         self.weights = _Weights(arrays)
         self.frames, width = self.config["frames"], self.config["width"]
         self.dct = dct_matrix(self.frames)[: self.config["dct_keep"]].astype(np.float32)
@@ -108,22 +114,23 @@ class NumpyTrajeVAE:
         coefficients = w.transformer("coefficient_transformer", coefficients + self.coefficient_code, heads)
         out = w.linear("prior_head", w.transformer("prior_transformer", coefficients, heads))
         mean, log_var = np.split(out, 2, axis=-1)
-        return mean, np.clip(log_var, -10.0, 10.0), (initial, condition, pose_code,
-                                                    _given_steps(initial, trajectories, mask))
+        given = _given_steps(initial, trajectories, mask)
+        frames = np.concatenate([condition, np.broadcast_to(pose_code[:, None], condition.shape), given], -1)
+        condition_term = w.linear("decoder_input.0", frames.astype(np.float32), ".weight_condition")
+        steps = given[..., NUM_JOINTS * 3:NUM_JOINTS * 6].reshape(*mask.shape[:2], NUM_JOINTS, 3)
+        return mean, np.clip(log_var, -10.0, 10.0), (initial, condition_term, steps)
 
     def decode(self, z, encoded):
-        """Poses (B, T, 17, 3) from latents (B, K, latent) and the encoded condition of ``prior``."""
+        """Poses (B, T, 17, 3) from latents (B, K, latent) and the encoded condition of ``prior``
+        (which carries the condition's share of the first layer, as in ``model.TrajeVAE.decode``)."""
         w = self.weights
-        initial, condition, pose_code, given = encoded
-        in_time = np.einsum("kt,bkl->btl", self.dct, z)
-        frames = np.concatenate([in_time, condition, np.broadcast_to(pose_code[:, None], condition.shape), given],
-                                -1).astype(np.float32)
-        hidden = w.transformer("decoder_transformer", w.mlp("decoder_input", frames, final_norm=False)
-                               + self.time_code, self.config["heads"])
+        initial, condition_term, steps = encoded
+        in_time = np.einsum("kt,bkl->btl", self.dct, z).astype(np.float32)
+        first = w.linear("decoder_input.0", in_time, ".weight_latent", bias=None) + condition_term
+        first = w.linear("decoder_input.3", _leaky(w.layer_norm("decoder_input.1", first)))
+        hidden = w.transformer("decoder_transformer", first + self.time_code, self.config["heads"])
         offsets = w.linear("decoder_output.2", _leaky(w.linear("decoder_output.0", hidden)))
-        offsets = offsets.reshape(*hidden.shape[:2], NUM_JOINTS, 3) + given[..., NUM_JOINTS * 3:NUM_JOINTS * 6].reshape(
-            *hidden.shape[:2], NUM_JOINTS, 3)  # the given steps, as in model.TrajeVAE.decode
-        return initial[:, None] + np.cumsum(offsets, axis=1)
+        return initial[:, None] + np.cumsum(offsets.reshape(*hidden.shape[:2], NUM_JOINTS, 3) + steps, axis=1)
 
     def sample(self, initial, trajectories, mask, count, rng, scale=1.0, sampler=None, keep_given=True):
         """``count`` motions per condition (B, count, T, 17, 3): prior samples, or the diverse
