@@ -1,0 +1,45 @@
+"""Realism measures on real motion capture, and on the same poses broken by hand."""
+
+import numpy as np
+import pytest
+import torch
+
+from model_runtime import realism
+from model_runtime.data import dataset
+from model_runtime.skeleton import JOINT_INDEX
+
+
+@pytest.fixture(scope="module")
+def validation_poses(all_clips, manifest):
+    """Every 10th frame of the validation subjects (N, 17, 3): poses the limits were not fitted on."""
+    _, validation = dataset.split_by_subject(all_clips, manifest)
+    return np.concatenate([c.positions for c in validation])[::10].astype(np.float32)
+
+
+def _cosine(poses, name):
+    return realism.joint_angle_cosines(torch.from_numpy(poses)).numpy()[:, realism.ANGLE_NAMES.index(name)]
+
+
+def test_angle_cosines_by_hand(validation_poses):
+    poses = validation_poses[:50].copy()
+    shoulder, elbow, wrist = (JOINT_INDEX[n] for n in ("LShoulder", "LElbow", "LWrist"))
+    poses[:, wrist] = poses[:, elbow] + (poses[:, elbow] - poses[:, shoulder])  # a straight arm
+    np.testing.assert_allclose(_cosine(poses, "left_elbow"), 1.0, atol=1e-5)
+    upper = poses[:, elbow] - poses[:, shoulder]
+    across = np.cross(upper, [0.0, 0.0, 1.0])
+    poses[:, wrist] = poses[:, elbow] + across  # forearm at a right angle to the upper arm
+    np.testing.assert_allclose(_cosine(poses, "left_elbow"), 0.0, atol=1e-5)
+
+
+def test_captured_poses_keep_within_the_angle_limits_and_backward_knees_do_not(validation_poses):
+    limits = realism.load_angle_limits()
+    assert realism.share_outside_limits(validation_poses, limits) < 0.03
+    hip, knee, foot = (JOINT_INDEX[n] for n in ("LHip", "LKnee", "LFoot"))
+    bent = validation_poses[_cosine(validation_poses, "left_knee") < 0.8].copy()
+    assert len(bent) > 100 and realism.share_outside_limits(bent, limits) < 0.05
+    # the knee mirrored through the hip-ankle line: the same bone lengths, the leg bent backwards
+    along = bent[:, foot] - bent[:, hip]
+    along /= np.linalg.norm(along, axis=-1, keepdims=True)
+    on_line = bent[:, hip] + ((bent[:, knee] - bent[:, hip]) * along).sum(-1, keepdims=True) * along
+    bent[:, knee] = 2.0 * on_line - bent[:, knee]
+    assert realism.share_outside_limits(bent, limits) > 0.75  # 0.84: the hinge range is wide near straight
