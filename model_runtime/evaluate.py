@@ -9,8 +9,9 @@ frames outside the joint-angle limits), skating (horizontal foot speed in
 contact, m/s); the ground truth's own realism figures are printed beside.
 By default the windows come from the validation subjects; ``--data`` takes
 any BVH files or folders. The nearest-neighbour baseline searches the
-training subjects' windows. "sampler" (the diverse sampler) runs when its
-weights exist.
+training subjects' windows. "trajevae" draws prior samples as the add-on
+does (with curves, the most plausible of a doubled pool); "sampler" (the
+diverse sampler) runs when its weights exist.
 """
 
 import argparse
@@ -24,7 +25,7 @@ import torch
 
 from . import baselines, masks, metrics, realism, weights
 from .data import clips, dataset
-from .sampler import sample_motions
+from .sampler import prior_motions, sample_motions
 
 METHODS = ("trajevae", "trajevae_mean", "sampler", "pinned_pose", "nearest_neighbour")
 METRICS = ("APD", "ADE", "FDE", "MMADE", "MMFDE", "traj_err", "MPD", "bone_dev", "angle_out", "skating")
@@ -44,9 +45,10 @@ def generate(method, model, neighbours, windows, mask, samples, generator, diver
             with torch.no_grad():
                 if method == "sampler":
                     motion = sample_motions(model, diverse_sampler, *condition, samples, generator)
+                elif method == "trajevae":
+                    motion = prior_motions(model, *condition, samples, generator)
                 else:
-                    motion = model.sample(*condition, samples, generator=generator,
-                                          use_mean=method == "trajevae_mean")
+                    motion = model.sample(*condition, 1, generator=generator, use_mean=True)
             out.append(motion.numpy())
         return np.concatenate(out)
     if method == "pinned_pose":

@@ -175,10 +175,12 @@ class TrajeVAE(nn.Module):
                 (prior_mean, prior_log_var), (post_mean, post_log_var))
 
     @torch.no_grad()
-    def sample(self, initial, trajectories, mask, count, scale=1.0, generator=None, use_mean=False):
+    def sample(self, initial, trajectories, mask, count, scale=1.0, generator=None, use_mean=False,
+               keep_given=True):
         """``count`` motions per condition: (B, count, T, J, 3).
 
-        z = prior mean + scale * sigma * eps; ``use_mean`` decodes the prior mean once per condition.
+        z = prior mean + scale * sigma * eps; ``use_mean`` decodes the prior mean once per condition;
+        ``keep_given`` sets the known joints to their given positions (else the decoder's own fit).
         """
         prior_mean, prior_log_var, encoded = self.prior(initial, trajectories, mask)
         count = 1 if use_mean else count
@@ -186,7 +188,8 @@ class TrajeVAE(nn.Module):
         noise = torch.zeros_like(mean) if use_mean else torch.randn(
             mean.shape, generator=generator, dtype=mean.dtype)
         motion = self.decode(mean + scale * std * noise, repeat_encoded(encoded, count))
-        return with_given_joints(motion.view(initial.shape[0], count, *motion.shape[1:]), trajectories, mask)
+        motion = motion.view(initial.shape[0], count, *motion.shape[1:])
+        return with_given_joints(motion, trajectories, mask) if keep_given else motion
 
 
 def with_given_joints(motion, trajectories, mask):

@@ -133,24 +133,30 @@ class NumpyTrajeVAE:
         return initial[:, None] + np.cumsum(offsets.reshape(*hidden.shape[:2], NUM_JOINTS, 3) + steps, axis=1)
 
     def sample(self, initial, trajectories, mask, count, rng, scale=1.0, sampler=None, keep_given=True):
-        """``count`` motions per condition (B, count, T, 17, 3): prior samples, or the diverse
-        sampler's when given (distinct plausible ones from a larger pool, see ``selection``).
+        """``count`` motions per condition (B, count, T, 17, 3): prior samples (where joints are given,
+        the most plausible of a larger pool), or the diverse sampler's when given (distinct plausible
+        ones from a larger pool); see ``selection``.
 
         ``keep_given`` sets known joints exactly to their given positions; without it they are the
         decoder's own close fit, which blends without a step where the given frames end.
         """
         mean, log_var, encoded = self.prior(initial, trajectories, mask)
-        draws = count if sampler is None else selection.POOL_FACTOR * count
+        screened = mask.reshape(len(mask), -1).any(axis=1)
         if sampler is not None:
+            draws = selection.POOL_FACTOR * count
             z = sampler.latents(mean, log_var, draws, rng, scale)
         else:
-            noise = rng.standard_normal((len(mean), count) + mean.shape[1:]).astype(np.float32)
+            draws = selection.GIVEN_POOL_FACTOR * count if screened.any() else count
+            noise = rng.standard_normal((len(mean), draws) + mean.shape[1:]).astype(np.float32)
             z = mean[:, None] + scale * np.exp(0.5 * log_var)[:, None] * noise
         encoded = tuple(np.repeat(part, draws, axis=0) for part in encoded)
         motion = self.decode(z.reshape(-1, *mean.shape[1:]), encoded).reshape(len(initial), draws, -1, NUM_JOINTS, 3)
         if sampler is not None:
             motion = np.stack([m[selection.distinct_plausible(m, i, count, t, k)]
                                for m, i, t, k in zip(motion, initial, trajectories, mask)])
+        elif draws > count:
+            motion = np.stack([m[selection.most_plausible(m, i, count, t, k) if s else np.arange(count)]
+                               for m, i, t, k, s in zip(motion, initial, trajectories, mask, screened)])
         if keep_given:
             motion = np.where(mask[:, None, ..., None] > 0, trajectories[:, None], motion)  # as model.with_given_joints
         return motion

@@ -11,6 +11,7 @@ from a larger pool (``selection``).
 
 from dataclasses import asdict, dataclass
 
+import numpy as np
 import torch
 from torch import nn
 
@@ -68,6 +69,23 @@ class DiverseSampler(nn.Module):
         shape = prior_mean.shape
         z = (prior_mean[:, None] + torch.exp(0.5 * prior_log_var)[:, None] * standard.view(shape[0], count, *shape[1:]))
         return z.flatten(0, 1), (mean, log_var)
+
+
+def prior_motions(model, initial, trajectories, mask, count, generator=None):
+    """``count`` prior samples per condition, known joints as given: (B, count, T, J, 3).
+
+    Where joints are given, the most plausible of ``selection.GIVEN_POOL_FACTOR`` x count draws, as
+    the add-on does; with nothing given, plain prior samples.
+    """
+    screened = [bool(k.any()) for k in mask]
+    if not any(screened):
+        return model.sample(initial, trajectories, mask, count, generator=generator)
+    draws = selection.GIVEN_POOL_FACTOR * count
+    motion = model.sample(initial, trajectories, mask, draws, generator=generator, keep_given=False)
+    chosen = [selection.most_plausible(m, i, count, t, k) if s else np.arange(count)
+              for m, i, t, k, s in zip(motion.numpy(), initial.numpy(), trajectories.numpy(), mask.numpy(), screened)]
+    motion = torch.stack([m[torch.from_numpy(c)] for m, c in zip(motion, chosen)])
+    return with_given_joints(motion, trajectories, mask)
 
 
 def sample_motions(model, sampler, initial, trajectories, mask, count, generator=None):

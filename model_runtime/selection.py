@@ -21,6 +21,7 @@ from .skeleton import rigid_bone_lengths
 
 POOL_FACTOR = 5  # candidates drawn per variant asked for
 SCREENED_SHARE = 0.5  # least plausible share of the pool dropped before selection
+GIVEN_POOL_FACTOR = 2  # prior draws per variant where joints are given (``most_plausible``)
 
 
 def _relative(values):
@@ -54,9 +55,19 @@ def farthest_points(candidates, count):
     return np.array(chosen)
 
 
+def most_plausible(candidates, initial, count, given=None, known=None):
+    """Indices (count,) of the ``count`` least implausible candidates (P, T, 17, 3), best first.
+
+    Where joints are given, the prior's samples are drawn ``GIVEN_POOL_FACTOR`` x over and screened
+    so, keeping the variants whose bodies follow the curves by themselves. Arguments as
+    ``implausibility``.
+    """
+    return np.argsort(implausibility(candidates, initial, given, known), kind="stable")[:count]
+
+
 def distinct_plausible(candidates, initial, count, given=None, known=None):
     """Indices (count,) into candidates (P, T, 17, 3), P >= count: the implausible share dropped,
     then farthest points. Arguments as ``implausibility``."""
     kept = max(count, len(candidates) - int(round(SCREENED_SHARE * len(candidates))))
-    order = np.argsort(implausibility(candidates, initial, given, known), kind="stable")[:kept]
+    order = most_plausible(candidates, initial, kept, given, known)
     return order[farthest_points(candidates[order], count)]

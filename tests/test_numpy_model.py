@@ -3,7 +3,7 @@
 import numpy as np
 import torch
 
-from model_runtime import masks, weights
+from model_runtime import masks, realism, weights
 from model_runtime.model import ModelConfig, TrajeVAE
 from model_runtime.numpy_model import NumpySampler, NumpyTrajeVAE
 from model_runtime.sampler import DiverseSampler, SamplerConfig
@@ -57,3 +57,26 @@ def test_numpy_sampler_matches_torch(tmp_path, all_clips):
     got = NumpySampler(path).standardised(mean.numpy(), log_var.numpy(), uniform.numpy())
     np.testing.assert_allclose(got[0], expected[0].numpy(), atol=1e-4)
     np.testing.assert_allclose(got[1], expected[1].numpy(), atol=1e-4)
+
+
+
+def test_with_curves_the_variants_follow_them_closer_and_stretch_less_than_plain_draws(all_clips):
+    """The shipped model, three curves: variants are screened from a doubled pool, so the joints
+    under the curves stray less from them, and bones stretch less, than in plain prior draws."""
+    model = NumpyTrajeVAE(weights.MODEL_WEIGHTS)
+    initial, trajectories, mask = _condition(all_clips)
+    variants = model.sample(initial, trajectories, mask, 10, np.random.default_rng(0), keep_given=False)
+    assert variants.shape == (3, 10, 60, 17, 3)
+    mean, log_var, encoded = model.prior(initial, trajectories, mask)
+    noise = np.random.default_rng(1).standard_normal((3, 10) + mean.shape[1:]).astype(np.float32)
+    z = (mean[:, None] + np.exp(0.5 * log_var)[:, None] * noise).reshape(-1, *mean.shape[1:])
+    plain = model.decode(z, tuple(np.repeat(part, 10, axis=0) for part in encoded)).reshape(variants.shape)
+
+    def straying(motion):
+        return np.linalg.norm(motion - trajectories[:, None], axis=-1)[:, :, mask[0] > 0].mean()
+    def stretch(motion):
+        return realism.bone_length_deviation(motion, initial[:, None])
+    print(f"straying from the curves: variants {straying(variants):.4f} m, plain draws {straying(plain):.4f} m; "
+          f"bone stretch {stretch(variants):.4f} m, {stretch(plain):.4f} m")
+    assert straying(variants) < 0.95 * straying(plain)
+    assert stretch(variants) < 0.95 * stretch(plain)
