@@ -68,7 +68,9 @@ ground truths), traj_err = mean distance of conditioned joints to their trajecto
 MPD = minimum pairwise distance among the K samples; realism: bone_dev = mean rigid
 bone-length deviation from the initial pose (m), angle_out = share of frames outside
 the joint-angle limits fitted on the training poses, skating = mean horizontal foot
-speed while the foot is within 5 cm of the floor (m/s). "sampler" is the diverse
+speed while the foot is within 5 cm of the floor (m/s). "trajevae" samples the prior as
+the add-on does: with trajectories given, the {selection.GIVEN_POOL_FACTOR}K draws' most plausible half (least
+bone stretch and straying from the trajectories). "sampler" is the diverse
 Gumbel-softmax sampler over the frozen model (assets/sampler.npz), its K variants
 picked from {selection.POOL_FACTOR}K draws (the least plausible {selection.SCREENED_SHARE:.0%} dropped, then
 farthest points).
