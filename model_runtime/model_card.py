@@ -73,7 +73,7 @@ the add-on does: with trajectories given, the {selection.GIVEN_POOL_FACTOR}K dra
 bone stretch and straying from the trajectories). "sampler" is the diverse
 Gumbel-softmax sampler over the frozen model (assets/sampler.npz), its K variants
 picked from {selection.POOL_FACTOR}K draws (the least plausible {selection.SCREENED_SHARE:.0%} dropped, then
-farthest points).
+farthest points), evaluated at k = 0, where the add-on uses it.
 k = number of trajectories given, in the order RFoot, LFoot, RWrist, LWrist.
 Run in {evaluation['seconds']:.0f} s with `python -m model_runtime.evaluate`.
 
