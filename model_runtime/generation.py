@@ -70,7 +70,7 @@ def to_scene_rate(motion, scene_frames, fps):
     return motion[..., below, :, :] * (1.0 - weight) + motion[..., above, :, :] * weight
 
 
-def _window(model, initial, trajectories, mask, count, rng, diversity, sampler):
+def _window(model, initial, trajectories, mask, count, rng, diversity, sampler, screen_given=True):
     """One window for B conditions in the model frame: (B, count, W, 17, 3); inputs (B, ...).
 
     Known joints come back as the decoder's fit, not pasted: carried frames are cross-faded into
@@ -79,7 +79,7 @@ def _window(model, initial, trajectories, mask, count, rng, diversity, sampler):
     shift = initial[:, :1].copy()  # (B, 1, 3): root over the floor
     shift[..., 2] = 0.0
     motion = model.sample(initial - shift, (trajectories - shift[:, None]) * mask[..., None], mask, count, rng,
-                          scale=diversity, sampler=sampler, keep_given=False)
+                          scale=diversity, sampler=sampler, keep_given=False, screen_given=screen_given)
     return motion + shift[:, None, None]
 
 
@@ -110,7 +110,7 @@ def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, samp
         if start == 0:
             new = _window(model, initial[None], given[:1], known[:1], count, rng, diversity, sampler)[0]
         else:
-            new = _window(model, motion[:, start], given, known, 1, rng, diversity, None)[:, 0]
+            new = _window(model, motion[:, start], given, known, 1, rng, diversity, None, screen_given=False)[:, 0]
         fade = np.linspace(0.0, 1.0, carried + 2)[1:-1, None, None]
         motion[:, start + 1:done + 1] = motion[:, start + 1:done + 1] * (1.0 - fade) + new[:, :carried] * fade
         motion[:, done + 1:start + frames + 1] = new[:, carried:frames]

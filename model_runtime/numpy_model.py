@@ -132,16 +132,19 @@ class NumpyTrajeVAE:
         offsets = w.linear("decoder_output.2", _leaky(w.linear("decoder_output.0", hidden)))
         return initial[:, None] + np.cumsum(offsets.reshape(*hidden.shape[:2], NUM_JOINTS, 3) + steps, axis=1)
 
-    def sample(self, initial, trajectories, mask, count, rng, scale=1.0, sampler=None, keep_given=True):
+    def sample(self, initial, trajectories, mask, count, rng, scale=1.0, sampler=None, keep_given=True,
+               screen_given=True):
         """``count`` motions per condition (B, count, T, 17, 3): prior samples (where joints are given,
         the most plausible of a larger pool), or the diverse sampler's when given (distinct plausible
         ones from a larger pool); see ``selection``.
 
         ``keep_given`` sets known joints exactly to their given positions; without it they are the
         decoder's own close fit, which blends without a step where the given frames end.
+        ``screen_given`` False draws plain prior samples even where joints are given (a motion's
+        continuation, which follows its own carried frames, at half the cost).
         """
         mean, log_var, encoded = self.prior(initial, trajectories, mask)
-        screened = mask.reshape(len(mask), -1).any(axis=1)
+        screened = mask.reshape(len(mask), -1).any(axis=1) & screen_given
         if sampler is not None:
             draws = selection.POOL_FACTOR * count
             z = sampler.latents(mean, log_var, draws, rng, scale)
