@@ -50,9 +50,11 @@ class _Weights:
         return flat.reshape(*x.shape[:-1], matrix.shape[0])
 
     def layer_norm(self, prefix, x, eps=1e-5):
-        mean = x.mean(-1, keepdims=True)
-        variance = ((x - mean) ** 2).mean(-1, keepdims=True)
-        return (x - mean) / np.sqrt(variance + eps) * self.arrays[prefix + ".weight"] + self.arrays[prefix + ".bias"]
+        centred = x - x.mean(-1, keepdims=True)
+        centred *= 1.0 / np.sqrt((centred * centred).mean(-1, keepdims=True) + eps)
+        centred *= self.arrays[prefix + ".weight"]
+        centred += self.arrays[prefix + ".bias"]
+        return centred
 
     def batch_norm(self, prefix, x, eps=1e-5):
         a = self.arrays
@@ -77,12 +79,14 @@ class _Weights:
 
     def _attention(self, prefix, x, heads):
         batch, tokens, width = x.shape
-        qkv = self.linear(prefix, x, ".in_proj_weight", ".in_proj_bias")
-        q, k, v = (part.reshape(batch, tokens, heads, width // heads).transpose(0, 2, 1, 3)
-                   for part in np.split(qkv, 3, axis=-1))
-        scores = q @ k.transpose(0, 1, 3, 2) / np.sqrt(width // heads)
-        scores = np.exp(scores - scores.max(-1, keepdims=True))
-        attended = (scores / scores.sum(-1, keepdims=True)) @ v
+        size = width // heads
+        qkv = self.linear(prefix, x, ".in_proj_weight", ".in_proj_bias").reshape(batch, tokens, 3, heads, size)
+        q, k, v = np.ascontiguousarray(qkv.transpose(2, 0, 3, 1, 4))  # (B, H, N, size) each, BLAS-ready
+        scores = (q * (1.0 / np.sqrt(size))) @ k.swapaxes(-1, -2)
+        scores -= scores.max(-1, keepdims=True)
+        np.exp(scores, out=scores)
+        scores /= scores.sum(-1, keepdims=True)
+        attended = scores @ v
         return self.linear(prefix + ".out_proj", attended.transpose(0, 2, 1, 3).reshape(batch, tokens, width))
 
 
@@ -110,7 +114,7 @@ class NumpyTrajeVAE:
         condition = w.mlp("frame_encoder", np.concatenate([flat, mask], -1).astype(np.float32))
         tokens = np.concatenate([condition, np.broadcast_to(pose_code[:, None], condition.shape)], -1)
         tokens = w.transformer("frame_transformer", tokens + self.time_code, heads)
-        coefficients = np.einsum("kt,btw->bkw", self.dct, tokens)
+        coefficients = self.dct @ tokens  # (K, T) @ (B, T, W)
         coefficients = w.transformer("coefficient_transformer", coefficients + self.coefficient_code, heads)
         out = w.linear("prior_head", w.transformer("prior_transformer", coefficients, heads))
         mean, log_var = np.split(out, 2, axis=-1)
@@ -125,7 +129,7 @@ class NumpyTrajeVAE:
         (which carries the condition's share of the first layer, as in ``model.TrajeVAE.decode``)."""
         w = self.weights
         initial, condition_term, steps = encoded
-        in_time = np.einsum("kt,bkl->btl", self.dct, z).astype(np.float32)
+        in_time = self.dct.T @ z.astype(np.float32)  # (T, K) @ (B, K, latent)
         first = w.linear("decoder_input.0", in_time, ".weight_latent", bias=None) + condition_term
         first = w.linear("decoder_input.3", _leaky(w.layer_norm("decoder_input.1", first)))
         hidden = w.transformer("decoder_transformer", first + self.time_code, self.config["heads"])
