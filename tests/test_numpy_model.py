@@ -59,7 +59,6 @@ def test_numpy_sampler_matches_torch(tmp_path, all_clips):
     np.testing.assert_allclose(got[1], expected[1].numpy(), atol=1e-4)
 
 
-
 def test_with_curves_the_variants_follow_them_closer_and_stretch_less_than_plain_draws(all_clips):
     """The shipped model, three curves: variants are screened from a doubled pool, so the joints
     under the curves stray less from them, and bones stretch less, than in plain prior draws."""
@@ -74,6 +73,7 @@ def test_with_curves_the_variants_follow_them_closer_and_stretch_less_than_plain
 
     def straying(motion):
         return np.linalg.norm(motion - trajectories[:, None], axis=-1)[:, :, mask[0] > 0].mean()
+
     def stretch(motion):
         return realism.bone_length_deviation(motion, initial[:, None])
     print(f"straying from the curves: variants {straying(variants):.4f} m, plain draws {straying(plain):.4f} m; "
