@@ -11,6 +11,7 @@ selection on the validation subjects; weights to assets/sampler.npz.
 """
 
 import argparse
+import dataclasses
 import json
 import sys
 import time
@@ -108,8 +109,12 @@ def main(argv=None):
     parser.add_argument("--limits", default=str(realism.ANGLE_LIMITS), help="fitted here if missing")
     parser.add_argument("--checkpoint", default=str(checkpoints.default_path("sampler")))
     parser.add_argument("--fresh", action="store_true", help="ignore an existing checkpoint")
+    for field in dataclasses.fields(SamplerTrainConfig):
+        if field.type is float:
+            parser.add_argument("--" + field.name.replace("_", "-"), type=float, default=field.default)
     args = parser.parse_args(argv)
-    config = SamplerTrainConfig(steps=args.steps, batch=args.batch, seed=args.seed)
+    config = SamplerTrainConfig(**{field.name: getattr(args, field.name) for field in dataclasses.fields(SamplerTrainConfig)
+                                   if hasattr(args, field.name)})
 
     model, _ = weights.load_model(args.model)
     for parameter in model.parameters():
