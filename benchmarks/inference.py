@@ -2,7 +2,8 @@
 
 Run: ``make bench-model``. Prints the median of repeated runs for k = 0 and k = 4 trajectories, in
 torch and in the numpy path the add-on runs (with curves, the most plausible of a doubled pool),
-and the diverse sampler's 10 variants (selected from a pool of ``selection.POOL_FACTOR`` x 10).
+and the diverse sampler's 10 variants (selected from a pool of ``selection.POOL_FACTOR`` x 10 sampler draws
+and ``selection.PRIOR_POOL_FACTOR`` x 10 prior draws).
 """
 
 import statistics

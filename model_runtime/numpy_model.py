@@ -139,8 +139,8 @@ class NumpyTrajeVAE:
     def sample(self, initial, trajectories, mask, count, rng, scale=1.0, sampler=None, keep_given=True,
                screen_given=True):
         """``count`` motions per condition (B, count, T, 17, 3): prior samples (where joints are given,
-        the most plausible of a larger pool), or the diverse sampler's when given (distinct plausible
-        ones from a larger pool); see ``selection``.
+        the most plausible of a larger pool), or with the diverse sampler given, distinct plausible
+        ones from a pool of its draws and the prior's; see ``selection``.
 
         ``keep_given`` sets known joints exactly to their given positions; without it they are the
         decoder's own close fit, which blends without a step where the given frames end.
@@ -150,12 +150,13 @@ class NumpyTrajeVAE:
         mean, log_var, encoded = self.prior(initial, trajectories, mask)
         screened = mask.reshape(len(mask), -1).any(axis=1) & screen_given
         if sampler is not None:
-            draws = selection.POOL_FACTOR * count
-            z = sampler.latents(mean, log_var, draws, rng, scale)
+            prior_draws = selection.PRIOR_POOL_FACTOR * count
+            z = np.concatenate([sampler.latents(mean, log_var, selection.POOL_FACTOR * count, rng, scale),
+                                self._prior_latents(mean, log_var, prior_draws, rng, scale)], axis=1)
+            draws = z.shape[1]
         else:
             draws = selection.GIVEN_POOL_FACTOR * count if screened.any() else count
-            noise = rng.standard_normal((len(mean), draws) + mean.shape[1:]).astype(np.float32)
-            z = mean[:, None] + scale * np.exp(0.5 * log_var)[:, None] * noise
+            z = self._prior_latents(mean, log_var, draws, rng, scale)
         encoded = tuple(np.repeat(part, draws, axis=0) for part in encoded)
         motion = self.decode(z.reshape(-1, *mean.shape[1:]), encoded).reshape(len(initial), draws, -1, NUM_JOINTS, 3)
         if sampler is not None:
@@ -167,6 +168,12 @@ class NumpyTrajeVAE:
         if keep_given:
             motion = np.where(mask[:, None, ..., None] > 0, trajectories[:, None], motion)  # as model.with_given_joints
         return motion
+
+    @staticmethod
+    def _prior_latents(mean, log_var, count, rng, scale):
+        """z (B, count, K, latent) = prior mean + scale * sigma * eps."""
+        noise = rng.standard_normal((len(mean), count) + mean.shape[1:]).astype(np.float32)
+        return mean[:, None] + scale * np.exp(0.5 * log_var)[:, None] * noise
 
 
 def _given_steps(initial, trajectories, mask):

@@ -6,7 +6,7 @@ Gumbel-softmax weights combine them into points; a second network maps each
 point to a Gaussian in the prior's standardised latent space:
 z = mu_prior + sigma_prior * (mean_k + sigma_k * eps). The frozen decoder
 turns each z into a motion. Any number of samples; N variants are picked
-from a larger pool (``selection``).
+from a larger pool of the sampler's and the prior's draws (``selection``).
 """
 
 from dataclasses import asdict, dataclass
@@ -91,12 +91,17 @@ def prior_motions(model, initial, trajectories, mask, count, generator=None):
 def sample_motions(model, sampler, initial, trajectories, mask, count, generator=None):
     """``count`` diverse motions per condition with the frozen model, known joints as given: (B, count, T, J, 3).
 
-    Distinct plausible ones from a pool of ``selection.POOL_FACTOR`` x count, as the add-on does.
+    Distinct plausible ones from a pool of the sampler's and the prior's draws
+    (``selection.POOL_FACTOR`` and ``selection.PRIOR_POOL_FACTOR`` x count), as the add-on does.
     """
-    draws = selection.POOL_FACTOR * count
+    draws, prior_draws = selection.POOL_FACTOR * count, selection.PRIOR_POOL_FACTOR * count
     prior_mean, prior_log_var, encoded = model.prior(initial, trajectories, mask)
     z, _ = sampler.latents(prior_mean, prior_log_var, draws, generator)
-    motion = model.decode(z, repeat_encoded(encoded, draws)).view(initial.shape[0], draws, -1, *initial.shape[1:])
+    noise = torch.randn((len(initial), prior_draws) + prior_mean.shape[1:], generator=generator)
+    prior_z = prior_mean[:, None] + torch.exp(0.5 * prior_log_var)[:, None] * noise
+    z = torch.cat([z.unflatten(0, (len(initial), draws)), prior_z], dim=1).flatten(0, 1)
+    pool = draws + prior_draws
+    motion = model.decode(z, repeat_encoded(encoded, pool)).view(initial.shape[0], pool, -1, *initial.shape[1:])
     chosen = [selection.distinct_plausible(m, i, count, t, k)
               for m, i, t, k in zip(motion.numpy(), initial.numpy(), trajectories.numpy(), mask.numpy())]
     motion = torch.stack([m[torch.from_numpy(c)] for m, c in zip(motion, chosen)])

@@ -17,12 +17,30 @@ def pool(all_clips, manifest):
     return windows[:, 1:] - windows[:, :1, :1] + windows[0, 0, 0], windows[0, 0]
 
 
-def test_farthest_points_beat_a_plain_draw_on_the_closest_pair(pool):
+def test_typical_first_spread_beats_a_plain_draw_on_the_closest_pair_and_starts_typical(pool):
     candidates, _ = pool
     plain = metrics.diversity(metrics.to_protocol(candidates[:4]))[1]
-    picked = metrics.diversity(metrics.to_protocol(candidates[selection.farthest_points(candidates, 4)]))[1]
+    chosen = selection.typical_first_spread(candidates, 4)
+    picked = metrics.diversity(metrics.to_protocol(candidates[chosen]))[1]
     assert picked > plain
-    assert len(set(selection.farthest_points(candidates, 12).tolist())) == 12
+    distances = metrics.pairwise_distances(metrics.to_protocol(candidates))
+    assert chosen[0] == np.argmin(distances.mean(axis=1))  # the medoid is always kept
+    assert len(set(selection.typical_first_spread(candidates, 12).tolist())) == 12
+
+
+def test_typical_first_spread_keeps_the_widest_spacing_that_typical_first_picking_allows(pool):
+    """Brute force over every spacing: none wider than the chosen one still makes the count."""
+    candidates, _ = pool
+    distances = metrics.pairwise_distances(metrics.to_protocol(candidates))
+    chosen = selection.typical_first_spread(candidates, 5)
+    spacing = distances[np.ix_(chosen, chosen)][~np.eye(5, dtype=bool)].min()
+    order = np.argsort(distances.mean(axis=1), kind="stable")
+    for radius in np.unique(distances[distances > spacing]):
+        taken = []
+        for index in order:
+            if all(distances[index, other] >= radius for other in taken):
+                taken.append(index)
+        assert len(taken) < 5
 
 
 def test_a_near_duplicate_and_a_stretched_body_are_not_picked(pool):
