@@ -72,9 +72,9 @@ speed while the foot is within 5 cm of the floor (m/s). "trajevae" samples the p
 the add-on does: with trajectories given, the {selection.GIVEN_POOL_FACTOR}K draws' most plausible half (least
 bone stretch and straying from the trajectories). "sampler" is the diverse
 Gumbel-softmax sampler over the frozen model (assets/sampler.npz), its K variants
-picked from a pool of {selection.POOL_FACTOR}K sampler draws and {selection.PRIOR_POOL_FACTOR}K prior draws (the least plausible
-{selection.SCREENED_SHARE:.0%} dropped, then the widest spacing that typical-first picking allows),
-evaluated at k = 0, where the add-on uses it.
+picked from a pool of {selection.POOL_FACTOR}K sampler draws and {selection.PRIOR_POOL_FACTOR}K prior draws (the least
+plausible {selection.SCREENED_SHARE:.0%} dropped, then the widest spacing that typical-first picking
+allows), evaluated at k = 0, where the add-on uses it.
 k = number of trajectories given, in the order RFoot, LFoot, RWrist, LWrist.
 Run in {evaluation['seconds']:.0f} s with `python -m model_runtime.evaluate`.
 

@@ -113,8 +113,8 @@ def main(argv=None):
         if field.type is float:
             parser.add_argument("--" + field.name.replace("_", "-"), type=float, default=field.default)
     args = parser.parse_args(argv)
-    config = SamplerTrainConfig(**{field.name: getattr(args, field.name) for field in dataclasses.fields(SamplerTrainConfig)
-                                   if hasattr(args, field.name)})
+    config = SamplerTrainConfig(**{field.name: getattr(args, field.name)
+                                   for field in dataclasses.fields(SamplerTrainConfig) if hasattr(args, field.name)})
 
     model, _ = weights.load_model(args.model)
     for parameter in model.parameters():
