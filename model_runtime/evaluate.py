@@ -13,8 +13,9 @@ training subjects' windows. "trajevae" draws prior samples as the add-on
 does (with curves, the most plausible of a doubled pool); "sampler" (the
 diverse sampler) runs when its weights exist, at k = 0 only: the add-on
 uses it where nothing is given (with curves it samples the prior, the
-"trajevae" rows), and its pool of 5K draws would otherwise take two thirds
-of the run (tests/test_sampler.py checks it with curves).
+"trajevae" rows), and its pool of 10K draws (5K of the sampler, 5K of the
+prior) would otherwise take most of the run (with 5K sampler draws alone it
+took two thirds; tests/test_sampler.py checks it with curves).
 """
 
 import argparse
