@@ -47,9 +47,10 @@ class RunState:
         temporary.replace(self.path)
 
 
-def progress_line(step, total, running, elapsed):
-    """A one-line progress bar with smoothed loss terms, elapsed time and ETA."""
-    eta = (total - step) * elapsed / max(step, 1)
+def progress_line(step, total, running, elapsed, since=(0, 0.0)):
+    """A one-line progress bar with smoothed loss terms, elapsed time and ETA; the ETA runs at the
+    pace since ``since`` (step, elapsed seconds): this session's, or this stage's."""
+    eta = (total - step) * (elapsed - since[1]) / max(step - since[0], 1)
     terms = " ".join(f"{name} {value:.3f}" for name, value in running.items())
     return (f"[{'#' * int(30 * step / total):<30}] step {step}/{total} {terms} "
             f"{elapsed / 60:.1f} min, eta {eta / 60:.1f} min")

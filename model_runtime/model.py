@@ -17,7 +17,14 @@ per-frame offsets summed from x0. It also sees, uncompressed, where each known
 joint is relative to x0 and its step from the previous frame (where both are
 known), and those steps are added to its offsets: a known joint follows its
 curve unless the network corrects it, and the bone-length loss makes the rest
-of the body come along. Native rate: 30 fps; T = 60 (2 s).
+of the body come along.
+
+Summed offsets drift, and a body decoded from a prior sample barely follows
+its given wrists and feet (elbows 0.2-0.3 m off with the wrists given). A
+completion stage therefore sees each decoded motion with its known joints
+pinned to their given positions, and moves the other joints by absolute
+displacements, not offsets (``complete``; trained after the rest, which stays
+frozen; see ``train``). Native rate: 30 fps; T = 60 (2 s).
 """
 
 import math
@@ -44,6 +51,7 @@ class ModelConfig:
     coefficient_layers: int = 1
     branch_layers: int = 1
     decoder_layers: int = 2
+    completion_layers: int = 2
     dropout: float = 0.1
 
     def to_dict(self):
@@ -91,8 +99,11 @@ class TrajeVAE(nn.Module):
         self.decoder_transformer = _transformer(config, config.decoder_layers)
         self.decoder_output = nn.Sequential(nn.Linear(config.width, config.width), nn.LeakyReLU(0.1),
                                             nn.Linear(config.width, coords))
-        for layer in (self.decoder_output[-1], self.prior_head, self.posterior_head):
-            nn.init.zeros_(layer.weight)  # start from a still pose and KL = 0
+        self.completion_input = _mlp(2 * coords + NUM_JOINTS, config.width, config.width, final_norm=False)
+        self.completion_transformer = _transformer(config, config.completion_layers)
+        self.completion_output = nn.Linear(config.width, coords)
+        for layer in (self.decoder_output[-1], self.prior_head, self.posterior_head, self.completion_output):
+            nn.init.zeros_(layer.weight)  # start from a still pose, KL = 0 and no completion
             nn.init.zeros_(layer.bias)
         dct = torch.tensor(dct_matrix(config.frames)[: config.dct_keep], dtype=torch.float32)
         self.register_buffer("dct", dct, persistent=False)  # (K, T)
@@ -174,13 +185,36 @@ class TrajeVAE(nn.Module):
         return (self.decode(z, encoded),
                 (prior_mean, prior_log_var), (post_mean, post_log_var))
 
+    def complete(self, motion, initial, trajectories, mask, keep_given=True):
+        """Decoded samples (B, count, T, J, 3) through the completion stage, for conditions (B, ...).
+
+        The stage sees each sample with its known joints pinned to their given positions (as
+        ``with_given_joints``), with the initial pose and the mask, and displaces the unknown
+        joints. ``keep_given`` returns known joints as given, else as decoded (their own close fit).
+        Sequences go in chunks of ``DECODE_CHUNK``, as in ``decode``.
+        """
+        pinned = with_given_joints(motion, trajectories, mask)
+        count = motion.shape[1]
+        initial, known = initial.repeat_interleave(count, 0), mask.repeat_interleave(count, 0)
+        frames = torch.cat([(pinned.flatten(0, 1) - initial[:, None]).flatten(2),
+                            initial.flatten(1)[:, None].expand(-1, known.shape[1], -1), known], dim=-1)
+        displacement = torch.cat([self._displacement(frames[start:start + DECODE_CHUNK])
+                                  for start in range(0, len(frames), DECODE_CHUNK)]).view(motion.shape)
+        return (pinned if keep_given else motion) + displacement * (1.0 - mask[:, None, ..., None])
+
+    def _displacement(self, frames):
+        """The completion stage's displacements (N, T, J * 3) from its per-frame inputs (N, T, 2 * J * 3 + J)."""
+        hidden = self.completion_transformer(self.completion_input(frames) + self.time_code)
+        return self.completion_output(hidden)
+
     @torch.no_grad()
     def sample(self, initial, trajectories, mask, count, scale=1.0, generator=None, use_mean=False,
-               keep_given=True):
+               keep_given=True, decoded_only=False):
         """``count`` motions per condition: (B, count, T, J, 3).
 
         z = prior mean + scale * sigma * eps; ``use_mean`` decodes the prior mean once per condition;
-        ``keep_given`` sets the known joints to their given positions (else the decoder's own fit).
+        ``keep_given`` sets the known joints to their given positions (else the decoder's own fit);
+        ``decoded_only`` skips the completion stage (a pool to screen before completing the picks).
         """
         prior_mean, prior_log_var, encoded = self.prior(initial, trajectories, mask)
         count = 1 if use_mean else count
@@ -189,14 +223,15 @@ class TrajeVAE(nn.Module):
             mean.shape, generator=generator, dtype=mean.dtype)
         motion = self.decode(mean + scale * std * noise, repeat_encoded(encoded, count))
         motion = motion.view(initial.shape[0], count, *motion.shape[1:])
-        return with_given_joints(motion, trajectories, mask) if keep_given else motion
+        return motion if decoded_only else self.complete(motion, initial, trajectories, mask, keep_given)
 
 
 def with_given_joints(motion, trajectories, mask):
     """Samples (B, count, T, J, 3) with the known joints set to their given positions (B, T, J, 3).
 
     Pose completion: what was given is kept as given, as every baseline does; the decoder already
-    brings the rest of the body along (its residual there is a few centimetres).
+    brings the rest of the body along (its residual there is a few centimetres), and
+    ``TrajeVAE.complete`` fits the rest to what is pinned.
     """
     return torch.where(mask[:, None, ..., None] > 0, trajectories[:, None], motion)
 

@@ -39,7 +39,9 @@ training masks vary over time as well as joints (keys, end poses, partial curves
 the decoder also sees, uncompressed, the known joints relative to the initial pose and
 their per-frame steps, so given curves are followed closely. A bone-length loss keeps
 limbs rigid. Samples keep the known joints exactly as given (pose completion; every
-baseline below does the same).
+baseline below does the same), and a completion stage, trained after the rest, moves
+the other joints to fit what is given (absolute displacements from the decoded motion
+with the given joints pinned).
 
 ## Data
 Real optical motion capture in ../shared/mocap (CMU and ACCAD), 17 canonical joints.
@@ -58,8 +60,12 @@ with warm restarts at {train['restart_peak']} x the previous peak), beta
 {train['beta']}, bone-length weight {train['bone_weight']}, random turns about Z and
 mirroring, seed {train['seed']}; masks mix the paper's Bernoulli trajectories
 (p = 0.85 masked), the evaluation order, sparse keys, end poses and partial curves.
-Best checkpoint at step {meta['step']} after {meta['training_minutes']:.0f} minutes on 2 CPU
-cores; validation best-of-10 ADE {meta['validation_ade_m']:.4f} m.
+Then the second stage: the completion stage alone ({config['completion_layers']} transformer layers) for
+{train['completion_steps']} steps (lr {train['completion_learning_rate']}, warm-up then one cosine decay, seed
+{train['seed']} + 1), on the frozen first stage's posterior reconstructions (squared error
+plus bone lengths). Best checkpoint at step {meta['step']} after {meta['training_minutes']:.0f} minutes on 2 CPU
+cores ({meta['first_stage_minutes']:.0f} for the first stage); validation best-of-10 ADE
+{meta['validation_ade_m']:.4f} m.
 
 ## Evaluation
 {evaluation['windows']} validation windows, K = {evaluation.get('samples', 50)} samples,

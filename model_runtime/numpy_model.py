@@ -137,13 +137,14 @@ class NumpyTrajeVAE:
         return initial[:, None] + np.cumsum(offsets.reshape(*hidden.shape[:2], NUM_JOINTS, 3) + steps, axis=1)
 
     def sample(self, initial, trajectories, mask, count, rng, scale=1.0, sampler=None, keep_given=True,
-               screen_given=True):
+               screen_given=True, decoded_only=False):
         """``count`` motions per condition (B, count, T, 17, 3): prior samples (where joints are given,
         the most plausible of a larger pool), or with the diverse sampler given, distinct plausible
         ones from a pool of its draws and the prior's; see ``selection``.
 
-        ``keep_given`` sets known joints exactly to their given positions; without it they are the
-        decoder's own close fit, which blends without a step where the given frames end.
+        Motions go through the completion stage (``complete``) unless ``decoded_only``. ``keep_given``
+        sets known joints exactly to their given positions; without it they are the decoder's own
+        close fit, which blends without a step where the given frames end.
         ``screen_given`` False draws plain prior samples even where joints are given (a motion's
         continuation, which follows its own carried frames, at half the cost).
         """
@@ -159,15 +160,30 @@ class NumpyTrajeVAE:
             z = self._prior_latents(mean, log_var, draws, rng, scale)
         encoded = tuple(np.repeat(part, draws, axis=0) for part in encoded)
         motion = self.decode(z.reshape(-1, *mean.shape[1:]), encoded).reshape(len(initial), draws, -1, NUM_JOINTS, 3)
+        if not decoded_only:  # screened as completed, with the known joints as decoded (``selection``)
+            motion = self.complete(motion, initial, trajectories, mask, keep_given=False)
         if sampler is not None:
             motion = np.stack([m[selection.distinct_plausible(m, i, count, t, k)]
                                for m, i, t, k in zip(motion, initial, trajectories, mask)])
         elif draws > count:
             motion = np.stack([m[selection.most_plausible(m, i, count, t, k) if s else np.arange(count)]
                                for m, i, t, k, s in zip(motion, initial, trajectories, mask, screened)])
-        if keep_given:
-            motion = np.where(mask[:, None, ..., None] > 0, trajectories[:, None], motion)  # as model.with_given_joints
-        return motion
+        return np.where(mask[:, None, ..., None] > 0, trajectories[:, None], motion) if keep_given else motion
+
+    def complete(self, motion, initial, trajectories, mask, keep_given=True):
+        """Decoded motions (B, count, T, 17, 3) through the completion stage, as ``model.TrajeVAE.complete``."""
+        w = self.weights
+        pinned = np.where(mask[:, None, ..., None] > 0, trajectories[:, None], motion)  # model.with_given_joints
+        count, frames = motion.shape[1], mask.shape[1]
+        relative = (pinned - initial[:, None, None]).reshape(len(motion), count, frames, -1)
+        pose = np.broadcast_to(initial.reshape(len(motion), 1, 1, -1), relative.shape)
+        known = np.broadcast_to(mask[:, None], (len(motion), count) + mask.shape[1:])
+        first = w.linear("completion_input.0", np.concatenate([relative, pose, known], -1).astype(np.float32))
+        hidden = w.linear("completion_input.3", _leaky(w.layer_norm("completion_input.1", first)))
+        hidden = w.transformer("completion_transformer", hidden.reshape(-1, frames, hidden.shape[-1]) + self.time_code,
+                               self.config["heads"])
+        displacement = w.linear("completion_output", hidden).reshape(motion.shape)
+        return (pinned if keep_given else motion) + displacement * (1.0 - mask[:, None, ..., None])
 
     @staticmethod
     def _prior_latents(mean, log_var, count, rng, scale):

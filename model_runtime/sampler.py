@@ -72,10 +72,10 @@ class DiverseSampler(nn.Module):
 
 
 def prior_motions(model, initial, trajectories, mask, count, generator=None):
-    """``count`` prior samples per condition, known joints as given: (B, count, T, J, 3).
+    """``count`` prior samples per condition, completed, known joints as given: (B, count, T, J, 3).
 
-    Where joints are given, the most plausible of ``selection.GIVEN_POOL_FACTOR`` x count draws, as
-    the add-on does; with nothing given, plain prior samples.
+    Where joints are given, the most plausible of ``selection.GIVEN_POOL_FACTOR`` x count completed
+    draws, as the add-on does; with nothing given, plain prior samples.
     """
     screened = [bool(k.any()) for k in mask]
     if not any(screened):
@@ -89,9 +89,10 @@ def prior_motions(model, initial, trajectories, mask, count, generator=None):
 
 
 def sample_motions(model, sampler, initial, trajectories, mask, count, generator=None):
-    """``count`` diverse motions per condition with the frozen model, known joints as given: (B, count, T, J, 3).
+    """``count`` diverse motions per condition with the frozen model, completed, known joints as given:
+    (B, count, T, J, 3).
 
-    Distinct plausible ones from a pool of the sampler's and the prior's draws
+    Distinct plausible ones from a completed pool of the sampler's and the prior's draws
     (``selection.POOL_FACTOR`` and ``selection.PRIOR_POOL_FACTOR`` x count), as the add-on does.
     """
     draws, prior_draws = selection.POOL_FACTOR * count, selection.PRIOR_POOL_FACTOR * count
@@ -102,6 +103,7 @@ def sample_motions(model, sampler, initial, trajectories, mask, count, generator
     z = torch.cat([z.unflatten(0, (len(initial), draws)), prior_z], dim=1).flatten(0, 1)
     pool = draws + prior_draws
     motion = model.decode(z, repeat_encoded(encoded, pool)).view(initial.shape[0], pool, -1, *initial.shape[1:])
+    motion = model.complete(motion, initial, trajectories, mask, keep_given=False)
     chosen = [selection.distinct_plausible(m, i, count, t, k)
               for m, i, t, k in zip(motion.numpy(), initial.numpy(), trajectories.numpy(), mask.numpy())]
     motion = torch.stack([m[torch.from_numpy(c)] for m, c in zip(motion, chosen)])

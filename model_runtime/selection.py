@@ -5,13 +5,14 @@ basis, so a plain draw of N keeps near-duplicates (the minimum pairwise
 distance of ../shared/papers/003 barely moves). "Generate N variants" therefore
 decodes a pool: ``POOL_FACTOR`` x N draws of the diverse sampler, which spread
 far, and ``PRIOR_POOL_FACTOR`` x N draws of the plain prior, which stay near the
-likely motion. It drops the ``SCREENED_SHARE`` that is least plausible (rigid
-bones stretched relative to the rest of the pool, or straying from the given
-curves and keys) and keeps N of the rest by ``typical_first_spread``: the
+likely motion. The pool comes through the completion stage, with its known
+joints as decoded. It drops the ``SCREENED_SHARE`` that is least plausible
+(rigid bones stretched relative to the rest of the pool, or straying from the
+given curves and keys) and keeps N of the rest by ``typical_first_spread``: the
 widest spacing at which candidates taken from the most typical outwards still
 make N. On the validation subjects (k = 0, shipped weights, K = 10 and 50)
-that keeps the sampler's spread (minimum pairwise distance 2.2-2.3x plain
-sampling's) while best-of-K error stays within 4 % of plain sampling's (it was
+that keeps the sampler's spread (minimum pairwise distance 2.4x plain
+sampling's) while best-of-K error stays 4-5 % above plain sampling's (it was
 7-8 % above with sampler draws only and farthest points from the medoid); more
 than four variants in five still come from the sampler. Screening half the
 pool instead of a quarter, or foot sliding as well, cost a fifth of the
@@ -88,8 +89,8 @@ def most_plausible(candidates, initial, count, given=None, known=None):
 
     Where joints are given, the prior's samples are drawn ``GIVEN_POOL_FACTOR`` x over and screened
     so, keeping the variants whose bodies follow the curves by themselves: on the validation
-    subjects with 1-4 curves, best-of-50 FDE 4-7 mm lower (k = 3: 0.582 -> 0.575 m, now ahead of
-    motion matching's 0.579), spread 7-9 % lower. Arguments as ``implausibility``.
+    subjects with 1-4 curves, best-of-50 FDE 4-7 mm lower (k = 3: 0.582 -> 0.575 m, measured before
+    the completion stage), spread 7-9 % lower. Arguments as ``implausibility``.
     """
     return np.argsort(implausibility(candidates, initial, given, known), kind="stable")[:count]
 

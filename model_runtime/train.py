@@ -1,11 +1,16 @@
 """``python -m model_runtime.train``: train TrajeVAE on the shared motion capture, on the CPU.
 
-Fixed seed, random turns about Z and mirroring, checkpoints with resume, and
-model selection on the validation subjects only (best-of-10 ADE of prior
-samples over the evaluation masks k = 0..4, the quantity the evaluation
-reports; the prior mean's error rewards standing still). The learning rate
-follows cosine cycles with warm restarts, so a longer run continues a shorter
-one's checkpoint exactly. The best model is written to assets/trajevae.npz.
+Two stages. The first trains the network of the paper (encoders, prior,
+posterior, decoder); the second trains the completion stage alone on the
+frozen first stage's posterior reconstructions (``TrajeVAE.complete``), with
+its own seed, so it can start from a first stage's saved weights (``--init``)
+exactly as it would in one run. Fixed seed, random turns about Z and
+mirroring, checkpoints with resume, and model selection on the validation
+subjects only (best-of-10 ADE of prior samples over the evaluation masks
+k = 0..4, the quantity the evaluation reports; the prior mean's error rewards
+standing still). The first stage's learning rate follows cosine cycles with
+warm restarts, so a longer run continues a shorter one's checkpoint exactly.
+The best model is written to assets/trajevae.npz.
 """
 
 import argparse
@@ -26,7 +31,9 @@ from .skeleton import rigid_bone_lengths
 
 @dataclass(frozen=True)
 class TrainConfig:
-    steps: int = 10000
+    steps: int = 10000  # first stage
+    completion_steps: int = 4000  # second stage: the completion stage alone
+    completion_learning_rate: float = 3e-4  # warm-up, then one cosine decay
     batch: int = 64
     learning_rate: float = 4e-4
     warmup: int = 300
@@ -79,6 +86,33 @@ def losses(model, initial, future, mask, config):
     return total, {"known": known.item(), "unknown": unknown.item(), "kl": kl.item(), "bones": bones.item()}
 
 
+def completion_losses(model, initial, future, mask, config):
+    """Second-stage loss: squared error summed per sample, plus bone lengths, of the completed
+    decoding of a posterior sample; the first stage runs frozen, without dropout."""
+    model.eval()
+    with torch.no_grad():
+        reconstruction = model(initial, future, mask)[0]
+    model.train()
+    completed = model.complete(reconstruction[:, None], initial, future * mask[..., None], mask)[:, 0]
+    error = ((completed - future) ** 2).sum(-1).flatten(1).sum(-1).mean()
+    bones = ((rigid_bone_lengths(completed) - rigid_bone_lengths(initial)[:, None]) ** 2).flatten(1).sum(-1).mean()
+    return error + config.bone_weight * bones, {"completion": error.item(), "bones": bones.item()}
+
+
+def freeze_first_stage(model):
+    """Only the completion stage trains in the second stage."""
+    for name, parameter in model.named_parameters():
+        parameter.requires_grad_(name.startswith("completion_"))
+
+
+def stage_learning_rate(step, config):
+    """The learning rate of either stage at an overall step."""
+    if step < config.steps:
+        return learning_rate(step, config.learning_rate, config.warmup, config.cycle, config.restart_peak)
+    return learning_rate(step - config.steps, config.completion_learning_rate, config.warmup // 3,
+                         config.completion_steps)
+
+
 @torch.no_grad()
 def validate(model, windows, mask, samples=10, batch=64, seed=0):
     """Best-of-``samples`` ADE (DLow protocol, metres) of prior samples, over validation windows and masks.
@@ -115,7 +149,9 @@ def learning_rate(step, peak, warmup, cycle, restart_peak=0.5):
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m model_runtime.train", description=__doc__)
     parser.add_argument("--data", nargs="+", default=[str(dataset.DEFAULT_DATA_ROOT)])
-    parser.add_argument("--steps", type=int, default=TrainConfig.steps)
+    parser.add_argument("--steps", type=int, default=TrainConfig.steps, help="first-stage steps")
+    parser.add_argument("--completion-steps", type=int, default=TrainConfig.completion_steps)
+    parser.add_argument("--init", help="first-stage weights (.npz from this command) to start the second stage from")
     parser.add_argument("--batch", type=int, default=TrainConfig.batch)
     parser.add_argument("--seed", type=int, default=TrainConfig.seed)
     parser.add_argument("--out", default=str(weights.MODEL_WEIGHTS), help="where the best model goes")
@@ -123,7 +159,7 @@ def main(argv=None):
     parser.add_argument("--fresh", action="store_true", help="ignore an existing checkpoint")
     parser.add_argument("--threads", type=int, default=0, help="torch threads (0: all cores)")
     args = parser.parse_args(argv)
-    config = TrainConfig(steps=args.steps, batch=args.batch, seed=args.seed)
+    config = TrainConfig(steps=args.steps, completion_steps=args.completion_steps, batch=args.batch, seed=args.seed)
     model_config = ModelConfig()
     if args.threads:
         torch.set_num_threads(args.threads)
@@ -145,12 +181,30 @@ def main(argv=None):
     optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate, betas=(0.9, 0.99))
     print(f"TrajeVAE {parameter_count(model):,} parameters; {model_config}", flush=True)
     run = checkpoints.RunState(args.checkpoint, model, optimizer, rng)
-    if not args.fresh and run.resume():
+    if args.init:
+        state, meta = weights.load_state(args.init)
+        missing, unexpected = model.load_state_dict(
+            {name: value for name, value in state.items() if not name.startswith("completion_")}, strict=False)
+        if unexpected or not all(name.startswith("completion_") for name in missing):
+            parser.error(f"{args.init} is not a TrajeVAE of this configuration")
+        run.step, run.elapsed = config.steps, 60 * (meta.get("first_stage_minutes") or meta["training_minutes"])
+        print(f"second stage from the first stage's weights in {args.init}", flush=True)
+    elif not args.fresh and run.resume():
         print(f"resumed from {args.checkpoint} at step {run.step}", flush=True)
+    if run.step > config.steps:  # resumed inside the second stage, its random state restored
+        freeze_first_stage(model)
 
     model.train()
     started, running = time.time() - run.elapsed, {}
-    while run.step < config.steps:
+    total_steps = config.steps + config.completion_steps
+    first_stage_minutes = run.elapsed / 60 if run.step >= config.steps else None
+    pace_since = (run.step, run.elapsed)
+    while run.step < total_steps:
+        if run.step == config.steps:  # the second stage starts from the first stage's weights and its own seed
+            freeze_first_stage(model)
+            rng.bit_generator.state = np.random.default_rng(config.seed + 1).bit_generator.state
+            torch.manual_seed(config.seed + 1)
+            first_stage_minutes, running, pace_since = run.elapsed / 60, {}, (run.step, run.elapsed)
         motion = sampler.sample(config.batch, rng)
         flip = rng.random(config.batch) < config.mirror_probability
         motion[flip] = augment.mirror(motion[flip])
@@ -158,9 +212,9 @@ def main(argv=None):
         mask = masks.sample_training_masks(config.batch, model_config.frames, rng)
         motion, mask = torch.from_numpy(motion), torch.from_numpy(mask)
         for group in optimizer.param_groups:
-            group["lr"] = learning_rate(run.step, config.learning_rate, config.warmup, config.cycle,
-                                        config.restart_peak)
-        total, parts = losses(model, motion[:, 0], motion[:, 1:], mask, config)
+            group["lr"] = stage_learning_rate(run.step, config)
+        stage_losses = losses if run.step < config.steps else completion_losses
+        total, parts = stage_losses(model, motion[:, 0], motion[:, 1:], mask, config)
         optimizer.zero_grad()
         total.backward()
         torch.nn.utils.clip_grad_norm_(model.parameters(), 100.0)
@@ -168,9 +222,10 @@ def main(argv=None):
         run.step += 1
         checkpoints.smooth(running, parts)
         run.elapsed = time.time() - started
-        if run.step % 50 == 0 or run.step == config.steps:
-            print(checkpoints.progress_line(run.step, config.steps, running, run.elapsed), flush=True)
-        if run.step % config.validate_every == 0 or run.step == config.steps:
+        stage_end = run.step in (config.steps, total_steps)
+        if run.step % 50 == 0 or stage_end:
+            print(checkpoints.progress_line(run.step, total_steps, running, run.elapsed, pace_since), flush=True)
+        if run.step % config.validate_every == 0 or stage_end:
             error = validate(model, val_windows, val_mask)
             run.history.append({"step": run.step, "validation_ade_m": error, "minutes": run.elapsed / 60})
             marker = ""
@@ -178,11 +233,11 @@ def main(argv=None):
                 run.best, marker = error, " (best, saved)"
                 weights.save(args.out, model, model_config, {
                     "train": asdict(config), "step": run.step, "validation_ade_m": error,
-                    "training_minutes": run.elapsed / 60,
+                    "training_minutes": run.elapsed / 60, "first_stage_minutes": first_stage_minutes,
                     "validation_subjects": list(dataset.VALIDATION_SUBJECTS),
                     "parameters": parameter_count(model)})
             print(f"validation: best-of-10 ADE {error:.4f} m{marker}", flush=True)
-        if run.step % config.checkpoint_every == 0 or run.step == config.steps:
+        if run.step % config.checkpoint_every == 0 or stage_end:
             run.save()
     print(f"done: {run.step} steps in {run.elapsed / 60:.1f} min, "
           f"best validation error {run.best:.4f} m -> {args.out}")

@@ -1,5 +1,9 @@
 """``python -m model_runtime.train_sampler``: train the diverse sampler over the frozen TrajeVAE.
 
+It works on the first stage's decodes; the completion stage comes after, on
+the pool the variants are picked from (``sampler.sample_motions``), so the
+sampler does not depend on it.
+
 Losses: hinge diversity between the K samples of a condition, a hinge on each
 sample's distance to its nearest sibling (the duplicate-aware objective of
 ../shared/papers/003: a mean-based hinge alone leaves near-duplicates),
@@ -94,7 +98,8 @@ def plain_diversity(model, windows, count):
     (N, 1 + T, 17, 3)."""
     initial, future = torch.from_numpy(windows[:, 0]), torch.from_numpy(windows[:, 1:])
     empty = torch.zeros(future.shape[:-1])
-    motion = model.sample(initial, future * 0, empty, count, generator=torch.Generator().manual_seed(0))
+    motion = model.sample(initial, future * 0, empty, count, generator=torch.Generator().manual_seed(0),
+                          decoded_only=True)
     samples = [metrics.to_protocol(m) for m in motion.numpy()]
     return tuple(float(value) for value in np.mean([metrics.diversity(s) for s in samples], axis=0))
 

@@ -23,11 +23,17 @@ def save(path, module, config, extra=None):
     temporary.replace(path)
 
 
-def load(path, module_class, config_class):
-    """(module in eval mode, meta dict) from a file written by ``save``."""
+def load_state(path):
+    """(state dict of tensors, meta dict) from a file written by ``save``."""
     with np.load(path, allow_pickle=False) as stored:
         meta = json.loads(str(stored["__meta__"]))
         state = {name: torch.from_numpy(stored[name]) for name in stored.files if name != "__meta__"}
+    return state, meta
+
+
+def load(path, module_class, config_class):
+    """(module in eval mode, meta dict) from a file written by ``save``."""
+    state, meta = load_state(path)
     module = module_class(config_class(**meta["config"]))
     module.load_state_dict(state)
     return module.eval(), meta

@@ -1,6 +1,7 @@
 """TrajeVAE with the shipped weights on real validation windows, and the training command."""
 
 import json
+import shutil
 
 import numpy as np
 import pytest
@@ -8,7 +9,7 @@ import torch
 
 from model_runtime import masks, metrics, train, weights
 from model_runtime.data import dataset
-from model_runtime.model import ModelConfig, TrajeVAE
+from model_runtime.model import ModelConfig, TrajeVAE, with_given_joints
 
 
 @pytest.fixture(scope="module")
@@ -63,17 +64,46 @@ def test_given_trajectories_are_followed(model, validation_windows):
     assert errors[4] < 0.5 * errors[0]  # the product then puts them on the curves exactly (limb solve)
 
 
-def test_training_runs_checkpoints_and_resumes(tmp_path):
+def test_completion_stage_fits_the_body_to_the_given_joints(model, validation_windows):
+    """The same draws with four trajectories given: completed, they are closer to the truth
+    (best of 10, DLow protocol) than as decoded with the given joints pinned."""
+    initial, future = torch.from_numpy(validation_windows[:, 0]), torch.from_numpy(validation_windows[:, 1:])
+    known = torch.from_numpy(np.broadcast_to(masks.evaluation_mask(4, 60), (len(future), 60, 17)).copy())
+    trajectories = future * known[..., None]
+    decoded = model.sample(initial, trajectories, known, 10, generator=torch.Generator().manual_seed(0),
+                           decoded_only=True)
+    with torch.no_grad():
+        completed = model.complete(decoded, initial, trajectories, known)
+    truth = metrics.to_protocol(future.numpy())
+    ade = {name: np.mean([metrics.ade_fde(metrics.to_protocol(m), t)[0] for m, t in zip(motion.numpy(), truth)])
+           for name, motion in (("pinned", with_given_joints(decoded, trajectories, known)),
+                                ("completed", completed))}
+    print(f"best-of-10 ADE with four trajectories: {ade}")
+    assert ade["completed"] < 0.95 * ade["pinned"]
+    given = np.broadcast_to(known.numpy()[:, None, ..., None] > 0, completed.shape)
+    np.testing.assert_array_equal(completed.numpy()[given], trajectories[:, None].expand_as(completed).numpy()[given])
+
+
+def test_training_runs_checkpoints_resumes_and_its_second_stage_depends_only_on_the_first(tmp_path):
     out, checkpoint = tmp_path / "model.npz", tmp_path / "run.pt"
-    common = ["--out", str(out), "--checkpoint", str(checkpoint), "--batch", "8"]
+    common = ["--out", str(out), "--checkpoint", str(checkpoint), "--batch", "8", "--completion-steps", "0"]
     assert train.main(["--steps", "2", "--fresh"] + common) == 0
     assert out.exists() and checkpoint.exists()
     state = torch.load(checkpoint, weights_only=True)
     assert state["step"] == 2
-    assert train.main(["--steps", "3"] + common) == 0
-    assert torch.load(checkpoint, weights_only=True)["step"] == 3
-    loaded, meta = weights.load(out, TrajeVAE, ModelConfig)
-    assert meta["step"] in (2, 3)
+    first_stage = tmp_path / "first_stage.npz"
+    shutil.copy(out, first_stage)  # the model at step 2: its one validation is the best
+    common[-1] = "2"
+    assert train.main(["--steps", "2"] + common) == 0  # resumes into the second stage
+    resumed = torch.load(checkpoint, weights_only=True)
+    assert resumed["step"] == 4
+    changed = {name for name, value in resumed["model"].items() if not torch.equal(value, state["model"][name])}
+    assert changed and all(name.startswith("completion_") for name in changed)
+    again = tmp_path / "again.pt"
+    assert train.main(["--init", str(first_stage), "--steps", "2", "--completion-steps", "2", "--batch", "8",
+                       "--out", str(tmp_path / "again.npz"), "--checkpoint", str(again)]) == 0
+    for name, value in torch.load(again, weights_only=True)["model"].items():
+        torch.testing.assert_close(value, resumed["model"][name])
 
 
 def test_evaluate_prints_and_writes_every_method_and_k(tmp_path, capsys, mocap_root):

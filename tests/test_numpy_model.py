@@ -35,6 +35,13 @@ def test_numpy_prior_and_decoder_match_torch(tmp_path, all_clips):
     with torch.no_grad():
         motion = torch_model.decode(torch.from_numpy(z), expected[2])
     np.testing.assert_allclose(numpy_model.decode(z, got[2]), motion.numpy(), atol=1e-3)
+    decoded = motion.numpy()[:, None]
+    condition = [torch.from_numpy(np.ascontiguousarray(a)) for a in (initial, trajectories, mask)]
+    for keep_given in (True, False):
+        with torch.no_grad():
+            completed = torch_model.complete(torch.from_numpy(decoded), *condition, keep_given=keep_given)
+        np.testing.assert_allclose(numpy_model.complete(decoded, initial, trajectories, mask, keep_given),
+                                   completed.numpy(), atol=1e-3)
 
 
 def test_numpy_sampler_matches_torch(tmp_path, all_clips):
