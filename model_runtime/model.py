@@ -214,7 +214,8 @@ class TrajeVAE(nn.Module):
 
         z = prior mean + scale * sigma * eps; ``use_mean`` decodes the prior mean once per condition;
         ``keep_given`` sets the known joints to their given positions (else the decoder's own fit);
-        ``decoded_only`` skips the completion stage (a pool to screen before completing the picks).
+        ``decoded_only`` skips the completion stage (the first stage's own decodes, the diverse
+        sampler's training ground).
         """
         prior_mean, prior_log_var, encoded = self.prior(initial, trajectories, mask)
         count = 1 if use_mean else count
