@@ -61,10 +61,10 @@ class _Weights:
         return ((x - a[prefix + ".running_mean"]) / np.sqrt(a[prefix + ".running_var"] + eps)
                 * a[prefix + ".weight"] + a[prefix + ".bias"])
 
-    def mlp(self, prefix, x):
-        """Linear, LayerNorm, LeakyReLU, Linear, LayerNorm, LeakyReLU (model._mlp)."""
+    def mlp(self, prefix, x, final_norm=True):
+        """Linear, LayerNorm, LeakyReLU, Linear, then LayerNorm, LeakyReLU if ``final_norm`` (model._mlp)."""
         x = self.linear(prefix + ".3", _leaky(self.layer_norm(prefix + ".1", self.linear(prefix + ".0", x))))
-        return _leaky(self.layer_norm(prefix + ".4", x))
+        return _leaky(self.layer_norm(prefix + ".4", x)) if final_norm else x
 
     def transformer(self, prefix, x, heads):
         """Pre-norm transformer encoder layers (batch_first, ReLU feed-forward) on (B, N, W)."""
@@ -168,18 +168,18 @@ class NumpyTrajeVAE:
         elif draws > count:
             motion = np.stack([m[selection.most_plausible(m, i, count, t, k) if s else np.arange(count)]
                                for m, i, t, k, s in zip(motion, initial, trajectories, mask, screened)])
-        return np.where(mask[:, None, ..., None] > 0, trajectories[:, None], motion) if keep_given else motion
+        return _with_given_joints(motion, trajectories, mask) if keep_given else motion
 
     def complete(self, motion, initial, trajectories, mask, keep_given=True):
         """Decoded motions (B, count, T, 17, 3) through the completion stage, as ``model.TrajeVAE.complete``."""
         w = self.weights
-        pinned = np.where(mask[:, None, ..., None] > 0, trajectories[:, None], motion)  # model.with_given_joints
+        pinned = _with_given_joints(motion, trajectories, mask)
         count, frames = motion.shape[1], mask.shape[1]
         relative = (pinned - initial[:, None, None]).reshape(len(motion), count, frames, -1)
         pose = np.broadcast_to(initial.reshape(len(motion), 1, 1, -1), relative.shape)
         known = np.broadcast_to(mask[:, None], (len(motion), count) + mask.shape[1:])
-        first = w.linear("completion_input.0", np.concatenate([relative, pose, known], -1).astype(np.float32))
-        hidden = w.linear("completion_input.3", _leaky(w.layer_norm("completion_input.1", first)))
+        hidden = w.mlp("completion_input", np.concatenate([relative, pose, known], -1).astype(np.float32),
+                       final_norm=False)
         hidden = w.transformer("completion_transformer", hidden.reshape(-1, frames, hidden.shape[-1]) + self.time_code,
                                self.config["heads"])
         displacement = w.linear("completion_output", hidden).reshape(motion.shape)
@@ -190,6 +190,12 @@ class NumpyTrajeVAE:
         """z (B, count, K, latent) = prior mean + scale * sigma * eps."""
         noise = rng.standard_normal((len(mean), count) + mean.shape[1:]).astype(np.float32)
         return mean[:, None] + scale * np.exp(0.5 * log_var)[:, None] * noise
+
+
+def _with_given_joints(motion, trajectories, mask):
+    """As ``model.with_given_joints``: motion (B, count, T, 17, 3) with the known joints set to the
+    given positions (B, T, 17, 3)."""
+    return np.where(mask[:, None, ..., None] > 0, trajectories[:, None], motion)
 
 
 def _given_steps(initial, trajectories, mask):
