@@ -24,7 +24,8 @@ its given wrists and feet (elbows 0.2-0.3 m off with the wrists given). A
 completion stage therefore sees each decoded motion with its known joints
 pinned to their given positions, and moves the other joints by absolute
 displacements, not offsets (``complete``; trained after the rest, which stays
-frozen; see ``train``). Native rate: 30 fps; T = 60 (2 s).
+frozen, on posterior samples' and the prior mean's decodes; see ``train``).
+Native rate: 30 fps; T = 60 (2 s).
 """
 
 import math

@@ -11,8 +11,8 @@ joints as decoded. It drops the ``SCREENED_SHARE`` that is least plausible
 given curves and keys) and keeps N of the rest by ``typical_first_spread``: the
 widest spacing at which candidates taken from the most typical outwards still
 make N. On the validation subjects (k = 0, shipped weights, K = 10 and 50)
-that keeps the sampler's spread (minimum pairwise distance 2.4x plain
-sampling's) while best-of-K error stays 4-5 % above plain sampling's (it was
+that keeps the sampler's spread (minimum pairwise distance 2.3x plain
+sampling's) while best-of-K error stays about 4 % above plain sampling's (it was
 7-8 % above with sampler draws only and farthest points from the medoid); more
 than four variants in five still come from the sampler. Screening half the
 pool instead of a quarter, or foot sliding as well, cost a fifth of the

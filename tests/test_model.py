@@ -84,6 +84,37 @@ def test_completion_stage_fits_the_body_to_the_given_joints(model, validation_wi
     np.testing.assert_array_equal(completed.numpy()[given], trajectories[:, None].expand_as(completed).numpy()[given])
 
 
+def test_completing_the_prior_mean_brings_its_end_pose_closer(model, all_clips, manifest):
+    """The point prediction (the prior mean's decode) with both feet given, on 135 validation
+    windows: completed, its final frame is closer to the truth than as decoded with the feet
+    pinned (0.750 against 0.772 m; the stage trained on posterior samples alone took it to 0.783)."""
+    windows = dataset.windows(dataset.split_by_subject(all_clips, manifest)[1], future=60, stride=30)
+    initial, future = torch.from_numpy(windows[:, 0]), torch.from_numpy(windows[:, 1:])
+    known = torch.from_numpy(np.broadcast_to(masks.evaluation_mask(2, 60), (len(future), 60, 17)).copy())
+    trajectories = future * known[..., None]
+    decoded = model.sample(initial, trajectories, known, 1, use_mean=True, decoded_only=True)
+    with torch.no_grad():
+        completed = model.complete(decoded, initial, trajectories, known)
+    truth = metrics.to_protocol(future.numpy())
+    fde = {name: np.mean([metrics.ade_fde(metrics.to_protocol(m), t)[1] for m, t in zip(motion.numpy(), truth)])
+           for name, motion in (("pinned", with_given_joints(decoded, trajectories, known)),
+                                ("completed", completed))}
+    print(f"prior mean's FDE with both feet given: {fde}")
+    assert fde["completed"] < fde["pinned"]
+
+
+def test_second_stage_scores_the_root_apart_from_the_body():
+    """A whole body off by d is one root error, d^2 per frame; the same error on one joint alone
+    is that joint's, relative to the root."""
+    truth = torch.randn(2, 60, 17, 3)
+    shift = torch.tensor([0.1, -0.2, 0.05])
+    torch.testing.assert_close(train.root_and_body_error(truth + shift, truth),
+                               torch.full((2,), 60 * float(shift.square().sum())))
+    moved = truth.clone()
+    moved[:, :, 13] += shift
+    torch.testing.assert_close(train.root_and_body_error(moved, truth), train.root_and_body_error(truth + shift, truth))
+
+
 def test_training_runs_checkpoints_resumes_and_its_second_stage_depends_only_on_the_first(tmp_path):
     out, checkpoint = tmp_path / "model.npz", tmp_path / "run.pt"
     common = ["--out", str(out), "--checkpoint", str(checkpoint), "--batch", "8", "--completion-steps", "0"]
