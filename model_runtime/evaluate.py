@@ -7,6 +7,8 @@ traj_err (mean distance of the conditioned joints to their trajectories), MPD
 rigid bone-length deviation from the initial pose, m), angle_out (share of
 frames outside the joint-angle limits), skating (horizontal foot speed in
 contact, m/s); the ground truth's own realism figures are printed beside.
+``--json`` writes {"methods": {method: {"k": {"0": {metric: value}, ...}}},
+"ground_truth": {...}, "windows": n, "samples": K, "seconds": s}.
 By default the windows come from the validation subjects; ``--data`` takes
 any BVH files or folders. The nearest-neighbour baseline searches the
 training subjects' windows. "trajevae" draws prior samples as the add-on
@@ -155,8 +157,8 @@ def main(argv=None):
     print(f"{len(windows)} windows in {seconds:.1f} s")
     if args.json:
         with open(args.json, "w") as handle:
-            json.dump({"methods": results, "ground_truth": truth, "windows": len(windows), "samples": args.samples,
-                       "seconds": round(seconds, 1)}, handle, indent=1)
+            json.dump({"methods": {method: {"k": by_k} for method, by_k in results.items()}, "ground_truth": truth,
+                       "windows": len(windows), "samples": args.samples, "seconds": round(seconds, 1)}, handle, indent=1)
     return 0
 
 

@@ -18,8 +18,8 @@ ATTRIBUTION = """- The data used in this project was obtained from mocap.cs.cmu.
 def render(meta, evaluation):
     config, train = meta["config"], meta["train"]
     rows = ["| method | k | " + " | ".join(METRICS) + " |", "|---|---|" + "---|" * len(METRICS)]
-    for method, by_k in evaluation["methods"].items():
-        for k, row in by_k.items():
+    for method, entry in evaluation["methods"].items():
+        for k, row in entry["k"].items():
             rows.append(f"| {method} | {k} | " + " | ".join(
                 "-" if row[m] is None else f"{row[m]:.3f}" for m in METRICS) + " |")
     truth = evaluation.get("ground_truth", {})

@@ -146,9 +146,15 @@ def test_evaluate_prints_and_writes_every_method_and_k(tmp_path, capsys, mocap_r
     assert set(result) == {"methods", "ground_truth", "windows", "samples", "seconds"}
     shipped = set(evaluate.METHODS) if weights.SAMPLER_WEIGHTS.exists() else set(evaluate.METHODS) - {"sampler"}
     assert set(result["methods"]) == shipped
-    for method, by_k in result["methods"].items():
-        assert set(by_k) == ({"0"} if method == "sampler" else {"0", "1", "2", "3", "4"})  # as the add-on uses it
-        assert all(set(row) == set(evaluate.METRICS) for row in by_k.values())
-    assert result["methods"]["pinned_pose"]["2"]["traj_err"] == 0.0
-    assert result["methods"]["trajevae"]["0"]["APD"] > 0
+    for method, entry in result["methods"].items():
+        assert set(entry) == {"k"}
+        assert set(entry["k"]) == ({"0"} if method == "sampler" else {"0", "1", "2", "3", "4"})  # as the add-on uses it
+        assert all(set(row) == set(evaluate.METRICS) for row in entry["k"].values())
+    assert result["methods"]["pinned_pose"]["k"]["2"]["traj_err"] == 0.0
+    assert result["methods"]["trajevae"]["k"]["0"]["APD"] > 0
     assert "nearest_neighbour" in capsys.readouterr().out
+    from model_runtime import model_card
+    card = tmp_path / "MODEL_CARD.md"
+    assert model_card.main([str(report), "--out", str(card)]) == 0
+    pinned = result["methods"]["pinned_pose"]["k"]["4"]
+    assert f"| pinned_pose | 4 | {pinned['APD']:.3f} | {pinned['ADE']:.3f} |" in card.read_text()
