@@ -64,9 +64,9 @@ Then the second stage: the completion stage alone ({config['completion_layers']}
 {train['completion_steps']} steps (lr {train['completion_learning_rate']}, warm-up then one cosine decay, seed
 {train['seed']} + 1), on the frozen first stage's decodes of posterior samples and, for
 {train['completion_mean_share']:.0%} of each batch, of the prior mean (squared error of the root and of the
-body relative to it, plus bone lengths). Best checkpoint at step {meta['step']} after {meta['training_minutes']:.0f} minutes on 2 CPU
-cores ({meta['first_stage_minutes']:.0f} for the first stage); validation best-of-10 ADE
-{meta['validation_ade_m']:.4f} m.
+body relative to it, plus bone lengths). Best checkpoint at step {meta['step']} after
+{meta['training_minutes']:.0f} minutes on 2 CPU cores ({meta['first_stage_minutes']:.0f} for the first stage); validation
+best-of-10 ADE {meta['validation_ade_m']:.4f} m.
 
 ## Evaluation
 {evaluation['windows']} validation windows, K = {evaluation.get('samples', 50)} samples,

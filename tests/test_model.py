@@ -64,22 +64,31 @@ def test_given_trajectories_are_followed(model, validation_windows):
     assert errors[4] < 0.5 * errors[0]  # the product then puts them on the curves exactly (limb solve)
 
 
+def _pinned_and_completed(model, windows, k, count, **sampling):
+    """Draws for windows (N, 1 + T, 17, 3) with the first k evaluation trajectories given: as decoded
+    with the given joints pinned, and through the completion stage; with their mean best-of-count
+    (ADE, FDE) by name, and the trajectories (N, T, 17, 3) and mask (N, T, 17) given."""
+    initial, future = torch.from_numpy(windows[:, 0]), torch.from_numpy(windows[:, 1:])
+    known = torch.from_numpy(np.broadcast_to(masks.evaluation_mask(k, 60), (len(future), 60, 17)).copy())
+    trajectories = future * known[..., None]
+    decoded = model.sample(initial, trajectories, known, count, decoded_only=True, **sampling)
+    with torch.no_grad():
+        motions = {"pinned": with_given_joints(decoded, trajectories, known),
+                   "completed": model.complete(decoded, initial, trajectories, known)}
+    truth = metrics.to_protocol(future.numpy())
+    errors = {name: np.mean([metrics.ade_fde(metrics.to_protocol(m), t) for m, t in zip(motion.numpy(), truth)], axis=0)
+              for name, motion in motions.items()}
+    return motions, errors, trajectories, known
+
+
 def test_completion_stage_fits_the_body_to_the_given_joints(model, validation_windows):
     """The same draws with four trajectories given: completed, they are closer to the truth
     (best of 10, DLow protocol) than as decoded with the given joints pinned."""
-    initial, future = torch.from_numpy(validation_windows[:, 0]), torch.from_numpy(validation_windows[:, 1:])
-    known = torch.from_numpy(np.broadcast_to(masks.evaluation_mask(4, 60), (len(future), 60, 17)).copy())
-    trajectories = future * known[..., None]
-    decoded = model.sample(initial, trajectories, known, 10, generator=torch.Generator().manual_seed(0),
-                           decoded_only=True)
-    with torch.no_grad():
-        completed = model.complete(decoded, initial, trajectories, known)
-    truth = metrics.to_protocol(future.numpy())
-    ade = {name: np.mean([metrics.ade_fde(metrics.to_protocol(m), t)[0] for m, t in zip(motion.numpy(), truth)])
-           for name, motion in (("pinned", with_given_joints(decoded, trajectories, known)),
-                                ("completed", completed))}
-    print(f"best-of-10 ADE with four trajectories: {ade}")
-    assert ade["completed"] < 0.95 * ade["pinned"]
+    motions, errors, trajectories, known = _pinned_and_completed(model, validation_windows, 4, 10,
+                                                                 generator=torch.Generator().manual_seed(0))
+    print(f"best-of-10 ADE, FDE with four trajectories: {errors}")
+    assert errors["completed"][0] < 0.95 * errors["pinned"][0]
+    completed = motions["completed"]
     given = np.broadcast_to(known.numpy()[:, None, ..., None] > 0, completed.shape)
     np.testing.assert_array_equal(completed.numpy()[given], trajectories[:, None].expand_as(completed).numpy()[given])
 
@@ -89,18 +98,9 @@ def test_completing_the_prior_mean_brings_its_end_pose_closer(model, all_clips, 
     windows: completed, its final frame is closer to the truth than as decoded with the feet
     pinned (0.750 against 0.772 m; the stage trained on posterior samples alone took it to 0.783)."""
     windows = dataset.windows(dataset.split_by_subject(all_clips, manifest)[1], future=60, stride=30)
-    initial, future = torch.from_numpy(windows[:, 0]), torch.from_numpy(windows[:, 1:])
-    known = torch.from_numpy(np.broadcast_to(masks.evaluation_mask(2, 60), (len(future), 60, 17)).copy())
-    trajectories = future * known[..., None]
-    decoded = model.sample(initial, trajectories, known, 1, use_mean=True, decoded_only=True)
-    with torch.no_grad():
-        completed = model.complete(decoded, initial, trajectories, known)
-    truth = metrics.to_protocol(future.numpy())
-    fde = {name: np.mean([metrics.ade_fde(metrics.to_protocol(m), t)[1] for m, t in zip(motion.numpy(), truth)])
-           for name, motion in (("pinned", with_given_joints(decoded, trajectories, known)),
-                                ("completed", completed))}
-    print(f"prior mean's FDE with both feet given: {fde}")
-    assert fde["completed"] < fde["pinned"]
+    _, errors, _, _ = _pinned_and_completed(model, windows, 2, 1, use_mean=True)
+    print(f"prior mean's ADE, FDE with both feet given: {errors}")
+    assert errors["completed"][1] < errors["pinned"][1]
 
 
 def test_second_stage_scores_the_root_apart_from_the_body():
