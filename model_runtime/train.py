@@ -255,7 +255,8 @@ def main(argv=None):
                 run.best, marker = error, " (best, saved)"
                 weights.save(args.out, model, model_config, {
                     "train": asdict(config), "step": run.step, "validation_ade_m": error,
-                    "training_minutes": run.elapsed / 60, "first_stage_minutes": first_stage_minutes,
+                    "training_minutes": run.elapsed / 60,
+                    "first_stage_minutes": run.elapsed / 60 if first_stage_minutes is None else first_stage_minutes,
                     "validation_subjects": list(dataset.VALIDATION_SUBJECTS),
                     "parameters": parameter_count(model)})
             print(f"validation: best-of-10 ADE {error:.4f} m{marker}", flush=True)
