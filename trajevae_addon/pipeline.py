@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import bpy
 import numpy as np
 
-from . import actions, curves, inference, rig_mapping, rig_state, variants
+from . import actions, bindings, curves, inference, rig_mapping, rig_state, variants
 from .runtime import generation, retarget, skeleton
 
 J = skeleton.JOINT_INDEX
@@ -66,44 +66,6 @@ class Report:
     curve_error_m: list = field(default_factory=list)
     out_of_reach: list = field(default_factory=list)
     difference_m: list = field(default_factory=list)
-
-
-PATH_CONSTRAINTS = {'FOLLOW_PATH', 'CLAMP_TO'}
-
-
-def bindings(armature, bones):
-    """{joint: (path object, use drawing speed)}: the armature's bindings, then any Follow Path or
-    Clamp To constraint of a mapped bone (a native way to say "this bone follows this path")."""
-    joint_of = {bone: joint for joint, bone in bones.items() if bone}
-    out = {}
-    for binding in armature.trajevae.bindings:
-        if binding.curve is None:
-            continue
-        joint = joint_of.get(binding.bone)
-        if joint is None:
-            raise rig_state.RigError(f"bone {binding.bone!r} is bound to {binding.curve.name!r} but carries no "
-                                     "joint; bind a mapped bone (hand, foot, ...)")
-        out[joint] = (binding.curve, binding.use_drawing_speed)
-    for joint, bone in bones.items():
-        if bone and joint not in out:
-            constraint = next(iter(path_constraints(armature, bone)), None)
-            if constraint is not None:
-                out[joint] = (constraint.target, True)
-    return out
-
-
-def path_constraints(armature, bone):
-    """The bone's active Follow Path / Clamp To constraints that target a curve."""
-    return [c for c in armature.pose.bones[bone].constraints
-            if c.type in PATH_CONSTRAINTS and not c.mute and c.influence > 0 and c.target is not None
-            and c.target.type == 'CURVE']
-
-
-def muted_path_constraints(armature, bones):
-    """{data path: 0.0} turning off the path constraints that served as bindings, so they do not
-    pull the generated motion a second time (restored with the artist's action)."""
-    return {c.path_from_id("influence"): 0.0 for bone in bones.values() if bone
-            for c in path_constraints(armature, bone)}
 
 
 def scene_frames(scene):
@@ -178,7 +140,7 @@ def prepare(armature, count=5, seed=0, diversity=1.0, scene=None):
     bones = rig_state.checked_mapping(armature)
     profile = rig_state.detected(armature)[0]
     shown_by = rig_mapping.shown_by(profile)
-    switches = {**rig_mapping.switches(profile), **muted_path_constraints(armature, bones)}
+    switches = {**rig_mapping.switches(profile), **bindings.muted_path_constraints(armature, bones)}
     switches_before = rig_state.current_switches(armature, switches)
     switches = {path: value for path, value in switches.items() if path in switches_before}
     frames = scene_frames(scene)
@@ -213,7 +175,8 @@ def prepare(armature, count=5, seed=0, diversity=1.0, scene=None):
                 trajectories[step - 1, J[joint]] = placement.to_model(poses[frame][1][J[joint]])
                 mask[step - 1, J[joint]] = 1.0
     curve_paths = {}
-    for joint, (obj, use_drawing_speed) in bindings(armature, bones).items():
+    paths, warnings = bindings.joint_paths(armature, bones)
+    for joint, (obj, use_drawing_speed) in paths.items():
         points, times = curves.path(obj, depsgraph, int(frames[0]))
         times = times if use_drawing_speed else None
         trajectories[:, J[joint]] = placement.to_model(

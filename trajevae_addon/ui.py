@@ -2,7 +2,7 @@
 
 import bpy
 
-from . import inference, pipeline, rig_mapping, rig_state
+from . import bindings, inference, rig_mapping, rig_state
 from .runtime import skeleton
 
 
@@ -59,10 +59,10 @@ class TRAJEVAE_PT_main(_SidebarPanel, bpy.types.Panel):
         listed = {b.bone for b in settings.bindings}
         for bone in bones.values():
             if bone and bone not in listed:
-                for constraint in pipeline.path_constraints(armature, bone):
+                for constraint in bindings.path_constraints(armature, bone):
                     layout.label(text=f"{bone} follows {constraint.target.name} ({constraint.name})",
                                  icon='CON_FOLLOWPATH')
-        if not len(settings.bindings) and not any(pipeline.path_constraints(armature, b) for b in bones.values()
+        if not len(settings.bindings) and not any(bindings.path_constraints(armature, b) for b in bones.values()
                                                   if b):
             layout.label(text="No paths: diverse motions from the current pose", icon='INFO')
 
