@@ -28,6 +28,8 @@ from .skeleton import JOINT_INDEX
 J = JOINT_INDEX
 LIMBS = (("RHip", "RKnee", "RFoot"), ("LHip", "LKnee", "LFoot"),
          ("RShoulder", "RElbow", "RWrist"), ("LShoulder", "LElbow", "LWrist"))
+# Share of a limb's length it is stretched to at most: fully straight limbs flip their bend.
+REACH_MARGIN = 0.999
 REQUIRED_JOINTS = ("Hip",) + tuple(joint for limb in LIMBS for joint in limb) + ("Thorax", "Neck")
 
 
@@ -164,7 +166,7 @@ def _lean_to_hands(rig, targets, chest, pivot, pinned):
     beyond the arm's reach to come within it (as a body leans to reach)."""
     start = rig.joints
     for shoulder, elbow, wrist in LIMBS[2:]:
-        reach = 0.999 * (np.linalg.norm(start[J[elbow]] - start[J[shoulder]])
+        reach = REACH_MARGIN * (np.linalg.norm(start[J[elbow]] - start[J[shoulder]])
                          + np.linalg.norm(start[J[wrist]] - start[J[elbow]]))
         centre = _apply(chest, pivot)
         arm = _apply(chest, start[J[shoulder]]) - centre
@@ -191,7 +193,7 @@ def _reach_feet(rig, targets, pelvis, free, rounds=4):
     for _ in range(rounds):
         shift = np.zeros((len(targets), 3))
         for upper, lower, end in LIMBS[:2]:
-            reach = 0.999 * (np.linalg.norm(start[J[lower]] - start[J[upper]])
+            reach = REACH_MARGIN * (np.linalg.norm(start[J[lower]] - start[J[upper]])
                              + np.linalg.norm(start[J[end]] - start[J[lower]]))
             to_end = targets[:, J[end]] - _apply(pelvis, start[J[upper]])
             distance = np.linalg.norm(to_end, axis=-1, keepdims=True)
@@ -258,15 +260,15 @@ def achieved_joints(rig, deltas):
     return out
 
 
-def reachable(rig, achieved, targets, joint):
-    """Frames (F,) on which the rig's limb can put ``joint`` on its target: the target lies within
-    the limb's length of the limb's (achieved) root. Joints outside the limbs always count."""
+def reach_shortfall(rig, achieved, targets, joint):
+    """How far (F,) each target of ``joint`` lies beyond its limb's reach from the limb's (achieved)
+    root, 0 where the rig can put the joint on it. Joints outside the limbs always reach."""
     for limb in LIMBS:
         if joint in limb[1:]:
             chain = limb[: limb.index(joint) + 1]
             length = sum(np.linalg.norm(rig.joints[J[b]] - rig.joints[J[a]]) for a, b in zip(chain, chain[1:]))
-            return np.linalg.norm(targets - achieved[:, J[chain[0]]], axis=-1) <= 0.999 * length
-    return np.ones(len(targets), dtype=bool)
+            return np.maximum(np.linalg.norm(targets - achieved[:, J[chain[0]]], axis=-1) - REACH_MARGIN * length, 0.0)
+    return np.zeros(len(targets))
 
 
 def _rigid_inverse(delta):

@@ -20,6 +20,49 @@ def active_armature(context):
     return obj if obj is not None and obj.type == 'ARMATURE' else None
 
 
+def unusable_reason(armature):
+    """A sentence saying why generation cannot write to ``armature``, or None when it can."""
+    if armature is None or getattr(armature, "type", None) != 'ARMATURE':
+        return "select an armature to generate motion for"
+    if armature.override_library is not None:
+        return (f"{armature.name!r} is a library override, whose variant list Blender cannot keep across save "
+                "and reload; make it local first (Object > Library Override > Make Local)")
+    if armature.library is not None:
+        return (f"{armature.name!r} is linked from {armature.library.filepath!r} and cannot be animated here; "
+                "make it local first (Object > Relations > Make Local)")
+    animation = armature.animation_data
+    if animation is not None and animation.use_tweak_mode:
+        return (f"{armature.name!r} is in NLA tweak mode, where a variant cannot be shown; exit it first "
+                "(Tab in the NLA editor)")
+    gaps = rig_mapping.missing(mapping(armature))
+    if gaps:
+        return f"{armature.name}: no bone mapped for {', '.join(gaps)}; set them under TrajeVAE > Rig Mapping"
+    return None
+
+
+POSE_CHANNELS = ("location", "rotation_quaternion", "rotation_euler", "rotation_axis_angle", "scale")
+
+
+def pose_snapshot(armature):
+    """{bone: {channel: values}} of every pose bone's transform channels and rotation mode: what
+    restoring the artist's rig puts back, exactly (JSON-safe)."""
+    return {bone.name: {"rotation_mode": bone.rotation_mode,
+                        **{channel: list(getattr(bone, channel)) for channel in POSE_CHANNELS}}
+            for bone in armature.pose.bones}
+
+
+def restore_pose(armature, snapshot):
+    """Put back a ``pose_snapshot`` on the bones that still exist."""
+    bones = armature.pose.bones
+    for name, channels in snapshot.items():
+        bone = bones.get(name)
+        if bone is None:
+            continue
+        bone.rotation_mode = channels["rotation_mode"]
+        for channel in POSE_CHANNELS:
+            setattr(bone, channel, channels[channel])
+
+
 def detected(armature):
     """(profile name, {joint: bone or None}) from the armature's bone names alone."""
     return rig_mapping.detect({bone.name: bone.parent.name if bone.parent else None
@@ -36,12 +79,21 @@ def mapping(armature):
 
 
 def checked_mapping(armature):
-    bones = mapping(armature)
-    gaps = rig_mapping.missing(bones)
-    if gaps:
-        raise RigError(f"{armature.name}: no bone mapped for {', '.join(gaps)}; "
-                       "set them under TrajeVAE > Rig Mapping")
-    return bones
+    """The mapping of a rig generation can write to; RigError saying why not otherwise."""
+    reason = unusable_reason(armature)
+    if reason:
+        raise RigError(reason)
+    return mapping(armature)
+
+
+def check_finite(armature, state, frame):
+    """RigError naming the bones whose pose at ``frame`` is not a number (NaN or infinite)."""
+    broken = sorted(bone for bone in state.matrices if not (np.isfinite(state.matrices[bone]).all()
+                                                           and np.isfinite(state.bases[bone]).all()))
+    if broken or not np.isfinite(np.array(armature.matrix_world)).all():
+        where = f"bone {', '.join(map(repr, broken))}" if broken else "object transform"
+        raise RigError(f"{armature.name!r}: the {where} at frame {frame} is not a number (NaN or infinite); "
+                       "reset or re-key it before generating")
 
 
 def _owner_and_name(armature, path):

@@ -1,9 +1,13 @@
 """The variant list on an armature: show one, keep one, or discard them all.
 
-The artist's own action is recorded before the first variant is shown and is
-never modified; discarding reassigns it (with its slot) and the rig switches
-generation changed.
+Before the first variant is shown, the artist's own action, its slot, the rig
+switches and every pose channel are recorded; the artist's action is never
+modified or deleted. Discarding puts all of it back exactly; keeping assigns
+the variant and leaves the artist's action in the file with a fake user,
+named on the armature as its previous action.
 """
+
+import json
 
 import bpy
 
@@ -19,15 +23,28 @@ def assign(armature, action):
 
 
 def record_original(armature, switch_values):
-    """Remember the artist's action and rig switches once, before any variant is assigned."""
+    """Remember the artist's action, rig switches and pose once, before any variant is assigned.
+    True when this call recorded them (False when they already were)."""
     settings = armature.trajevae
     if settings.has_original:
-        return
+        return False
     animation = armature.animation_data
     settings.original_action = animation.action if animation else None
     settings.original_slot = animation.action_slot.identifier if animation and animation.action_slot else ""
     settings.original_switches = rig_state.switches_to_json(switch_values)
+    settings.original_pose = json.dumps(rig_state.pose_snapshot(armature))
     settings.has_original = True
+    return True
+
+
+def forget_original(armature):
+    """Drop the record of the artist's state (it is theirs again, or nothing was shown)."""
+    settings = armature.trajevae
+    settings.has_original = False
+    settings.original_action = None
+    settings.original_slot = ""
+    settings.original_switches = ""
+    settings.original_pose = ""
 
 
 def add(armature, new_actions, curve_errors, differences):
@@ -49,36 +66,38 @@ def set_active(armature, action):
     settings = armature.trajevae
     index = next((i for i, item in enumerate(settings.variants) if item.action == action), None)
     if index is None:
-        raise ValueError(f"{action.name!r} is not a variant of {armature.name!r}")
+        raise ValueError(f"{getattr(action, 'name', action)!r} is not a variant of {armature.name!r}")
     settings.active_variant = index
 
 
-def _forget(armature, keep=None):
-    settings = armature.trajevae
+def _delete_variants(armature, keep=None):
     for action in listed(armature):
         if action != keep:
             bpy.data.actions.remove(action)
-    settings.variants.clear()
-    settings.has_original = False
-    settings.original_action = None
-    settings.original_slot = ""
-    settings.original_switches = ""
+    armature.trajevae.variants.clear()
+    armature.trajevae.last_report = ""
 
 
 def keep(armature, action):
-    """Assign ``action`` for good and delete the other variants."""
+    """Assign ``action`` for good and delete the other variants; the artist's own action stays in
+    the file (fake user) as the armature's previous action."""
     set_active(armature, action)
     assign(armature, action)
-    _forget(armature, keep=action)
+    settings = armature.trajevae
+    original = settings.original_action
+    if original is not None:
+        original.use_fake_user = True
+    settings.previous_action = original
+    _delete_variants(armature, keep=action)
+    forget_original(armature)
 
 
 def restore_original(armature):
-    """Delete every variant and give the rig back its own action and switches."""
+    """Delete every variant and give the rig back its own action, slot, switches and pose."""
     settings = armature.trajevae
     if not settings.has_original:
         return
     original, slot_identifier = settings.original_action, settings.original_slot
-    rig_state.apply_switches(armature, rig_state.switches_from_json(settings.original_switches))
     animation = armature.animation_data
     if animation is not None:
         animation.action = original
@@ -86,4 +105,10 @@ def restore_original(armature):
             slot = next((s for s in original.slots if s.identifier == slot_identifier), None)
             if slot is not None:
                 animation.action_slot = slot
-    _forget(armature)
+    rig_state.apply_switches(armature, rig_state.switches_from_json(settings.original_switches))
+    if settings.original_pose:
+        rig_state.restore_pose(armature, json.loads(settings.original_pose))
+    _delete_variants(armature)
+    forget_original(armature)
+    if original is not None:  # its keyed channels show the current frame again
+        bpy.context.scene.frame_set(bpy.context.scene.frame_current)
