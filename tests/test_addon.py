@@ -44,12 +44,11 @@ def _curve_errors(scene, rig, read_bones):
     """Mean distance (world units) of each bound joint to its curve, evaluated on the rig per frame."""
     from trajevae_addon import curves
     from model_runtime import generation
-    depsgraph = bpy.context.evaluated_depsgraph_get()
     frames = pipeline.scene_frames(scene)
     joint_of = {bone: joint for joint, bone in api.map_rig(rig).items()}
     expected = {}
     for binding in rig.trajevae.bindings:
-        points = curves.polyline(binding.curve, depsgraph)
+        points = curves.polyline(binding.curve)
         expected[binding.bone] = generation.curve_samples(points, len(frames) - 1, len(frames) - 1)
     errors = {bone: [] for bone in expected}
     world = np.array(rig.matrix_world)

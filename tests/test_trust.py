@@ -39,7 +39,7 @@ def _played_error(scene, rig, joint, curve):
     from model_runtime import generation
     from trajevae_addon import curves
     frames = pipeline.scene_frames(scene)
-    points, _ = curves.path(curve, bpy.context.evaluated_depsgraph_get(), int(frames[0]))
+    points, _ = curves.path(curve, int(frames[0]))
     wanted = generation.curve_samples(points, len(frames) - 1, len(frames) - 1)
     errors = []
     for index, frame in enumerate(frames):

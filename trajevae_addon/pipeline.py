@@ -43,8 +43,13 @@ MIN_MEASURED_FRAMES = 8
 COMPARED_FRAMES = 300
 # Where each stage ends on the progress bar: networks and retarget (worker), keys and measuring (main).
 PROGRESS_END = {"inference": 0.6, "retarget": 0.8, "write": 0.95, "measure": 1.0}
-# Main-thread seconds a Writer step may take before it hands control back to the interface.
+# Main-thread seconds a Writer step may take before it hands control back to the interface, and
+# the keys it writes between looks at the clock (about 0.05 s of writing).
 STEP_SECONDS = 0.1
+CHUNK_KEYS = 200_000
+# Keys of one generation above which its variants are stored as baked samples, a sixth of a key's
+# memory: 50 variants of 10,000 frames would otherwise hold 2.4 GB of keys.
+MAX_KEYS = 8_000_000
 
 
 class InputError(ValueError):
@@ -196,23 +201,25 @@ def _with_artist_action(armature, read):
 
 def _check_reach(job, bones, start_joints):
     """InputError naming each curve a body cannot follow, and by how much (world joints (17, 3) at
-    the start frame)."""
+    the start frame). Limits hold for the body as the model sees it (rigs outside the trained
+    size are scaled to it) and are said in scene metres."""
+    to_body = job.placement.scale / job.metres_per_unit  # scene metres -> the model's metres
     feet = min(start_joints[J["LFoot"]][2], start_joints[J["RFoot"]][2])
     seconds = (len(job.frames) - 1) / job.fps
     problems = []
     for joint, path in job.curve_paths.items():
         name = f"curve {job.curve_names[joint]!r} ({bones[joint]})"
         gap = np.linalg.norm(path[0] - start_joints[J[joint]]) * job.metres_per_unit
-        if gap > MAX_START_GAP_M:
-            problems.append(f"{name} starts {gap:.2f} m from its joint, which can jump at most {MAX_START_GAP_M:g} m "
-                            "onto it; draw it from the joint")
+        if gap * to_body > MAX_START_GAP_M:
+            problems.append(f"{name} starts {gap:.2f} m from its joint, which can jump at most "
+                            f"{MAX_START_GAP_M / to_body:.2g} m onto it; draw it from the joint")
         length = np.linalg.norm(np.diff(path, axis=0), axis=-1).sum() * job.metres_per_unit
-        if length / seconds > MAX_MEAN_SPEED_M_S:
-            problems.append(f"{name} is {length:.1f} m long, {length / seconds:.0f} m/s over the {seconds:.1f} s "
-                            f"frame range where a body manages about {MAX_MEAN_SPEED_M_S:g} m/s; shorten it or "
-                            "lengthen the range")
+        if length / seconds * to_body > MAX_MEAN_SPEED_M_S:
+            problems.append(f"{name} is {length:.1f} m long, {length / seconds:.3g} m/s over the {seconds:.1f} s "
+                            f"frame range where this body manages about {MAX_MEAN_SPEED_M_S / to_body:.3g} m/s; "
+                            "shorten it or lengthen the range")
         below = (feet - path[:, 2].min()) * job.metres_per_unit
-        if below > MAX_BELOW_FEET_M:
+        if below * to_body > MAX_BELOW_FEET_M:
             problems.append(f"{name} goes {below:.2f} m below the feet, through the floor")
     if problems:
         raise InputError("out of reach: " + "; ".join(problems))
@@ -245,16 +252,14 @@ def prepare(armature, count=5, seed=0, diversity=1.0, scene=None):
         poses, world = {}, []
         try:
             for frame in sorted({int(frames[0]), *key_frames} | (set(frames.tolist()) if moves else set())):
-                if frame != scene.frame_current:
-                    scene.frame_set(frame)
+                scene.frame_set(frame)  # even the current one: the scene as played, not as last edited
                 if frame == frames[0] or frame in key_frames:
                     poses[frame] = rig_state.read(armature, bones, bpy.context.evaluated_depsgraph_get(), shown_by)
                     rig_state.check_finite(armature, poses[frame][0], frame)
                 if moves:
                     world.append(np.array(armature.matrix_world, dtype=np.float64))
         finally:
-            if scene.frame_current != current:
-                scene.frame_set(current)
+            scene.frame_set(current)
         world = np.array(world) if moves else np.array(armature.matrix_world, dtype=np.float64)[None]
         return key_frames, poses, world
 
@@ -263,7 +268,6 @@ def prepare(armature, count=5, seed=0, diversity=1.0, scene=None):
         raise rig_state.RigError(f"{armature.name!r}: its object transform is not a number or flattens it "
                                  "(zero scale) on some frame; fix it before generating")
     rig, joints = poses[int(frames[0])]
-    depsgraph = bpy.context.evaluated_depsgraph_get()
     placement = generation.Placement.for_pose(joints, world[0][2, 3], metres_per_unit)
     model_frames = generation.model_frames(len(frames), fps)
     span = (len(frames) - 1) * generation.NATIVE_FPS / fps
@@ -278,7 +282,7 @@ def prepare(armature, count=5, seed=0, diversity=1.0, scene=None):
                 mask[step - 1, J[joint]] = 1.0
     curve_paths, curve_names = {}, {}
     for joint, (obj, use_drawing_speed) in paths.items():
-        points, times = curves.path(obj, depsgraph, int(frames[0]))
+        points, times = curves.path(obj, int(frames[0]))
         times = times if use_drawing_speed else None
         trajectories[:, J[joint]] = placement.to_model(
             generation.curve_samples(points, model_frames, span, times)[1:])
@@ -327,10 +331,16 @@ def infer(job, on_progress=None):
                                  progress=lambda fraction: advance(PROGRESS_END["inference"] * fraction))
     known = job.mask[None, ..., None] > 0
     motion[:, 1:] = np.where(known, job.trajectories[None], motion[:, 1:])  # exactly on curves and keys
-    motion = generation.to_scene_rate(job.placement.to_world(motion.astype(np.float64)), len(job.frames), job.fps)
-    if not np.isfinite(motion).all():
+    job.motion = np.empty((job.count, len(job.frames), skeleton.NUM_JOINTS, 3))
+    for index in range(job.count):  # one variant at a time: resampling makes copies
+        job.motion[index] = generation.to_scene_rate(job.placement.to_world(motion[index].astype(np.float64)),
+                                                     len(job.frames), job.fps)
+    del motion
+    for joint, path in job.curve_paths.items():  # on each scene frame, exactly where its curve is
+        job.motion[:, :, J[joint]] = path
+    if not np.isfinite(job.motion).all():
+        job.motion = None
         raise InputError("the model returned motion that is not a number for this input; nothing was written")
-    job.motion = motion
     job.seconds["inference"] = time.perf_counter() - clock
     _retarget(job, advance)
 
@@ -343,6 +353,7 @@ def _retarget(job, advance):
     known = np.concatenate([np.zeros((1, job.mask.shape[1])), job.mask])[..., None]  # initial frame free
     pinned = (generation.to_scene_rate(np.repeat(known, 3, axis=-1), frames, job.fps)[..., 0] > 0.999).astype(float)
     job.channels, job.shortfall = [], []
+    world_scale = np.abs(np.linalg.det(job.world_to_armature[:, :3, :3])) ** (-1.0 / 3.0)  # (F or 1,)
     start = PROGRESS_END["inference"]
     for index in range(job.count):
         targets = _to_armature(job.world_to_armature, job.motion[index])
@@ -352,9 +363,9 @@ def _retarget(job, advance):
             raise InputError("the retarget returned keys that are not a number for this rig; nothing was written")
         job.channels.append(channels)
         achieved = retarget.achieved_joints(job.rig, deltas)
-        job.shortfall.append({joint: retarget.reach_shortfall(job.rig, achieved,
-                                                              _to_armature(job.world_to_armature, path), joint)
-                              for joint, path in job.curve_paths.items()})
+        job.shortfall.append({joint: world_scale * retarget.reach_shortfall(
+            job.rig, achieved, _to_armature(job.world_to_armature, path), joint)
+            for joint, path in job.curve_paths.items()})
         advance(start + (PROGRESS_END["retarget"] - start) * (index + 1) / job.count)
     compared = job.motion[:, np.unique(np.linspace(0, frames - 1, min(frames, COMPARED_FRAMES)).astype(int))]
     job.difference = [min((float(np.linalg.norm(compared[index] - compared[other], axis=-1).mean())
@@ -420,6 +431,13 @@ class Writer:
         self.report = Report(seconds=dict(job.seconds), frames=job.frames, channels=job.channels,
                              out_of_reach=[], warnings=list(job.warnings))
         self._measured = [[] for _ in range(job.count)]  # per variant, (joint, error) on measured frames
+        self._written, self._pending = 0, None  # finished variants; (channelbag, channels left) of the next
+        channels_per_variant = sum(values.shape[1] for _, _, values in job.channels[0])
+        self.sampled = job.count * len(job.frames) * channels_per_variant > MAX_KEYS
+        if self.sampled:
+            self.report.warnings.append(
+                f"{job.count} variants of {len(job.frames)} frames are stored as baked samples to fit in memory; "
+                "Keep turns the kept one into keys (or Graph Editor > Channel > Samples to Keys)")
         frames = len(job.frames)
         per_variant = min(frames, max(MIN_MEASURED_FRAMES, MEASURED_FRAME_BUDGET // job.count))
         self._measure_at = np.unique(np.linspace(0, frames - 1, per_variant).round().astype(int))
@@ -427,7 +445,7 @@ class Writer:
 
     @property
     def progress(self):
-        written, measured = len(self.report.actions), sum(bool(m) for m in self._measured)
+        written, measured = self._written, sum(bool(m) for m in self._measured)
         write_start = PROGRESS_END["retarget"]
         return (write_start + (PROGRESS_END["write"] - write_start) * written / self.job.count
                 + (PROGRESS_END["measure"] - PROGRESS_END["write"]) * measured / self.job.count)
@@ -437,7 +455,7 @@ class Writer:
         the list."""
         began = clock = time.perf_counter()
         while True:
-            if len(self.report.actions) < self.job.count:
+            if self._written < self.job.count:
                 self._write_next()
                 stage = "write"
             else:
@@ -453,10 +471,20 @@ class Writer:
             clock = now
 
     def _write_next(self):
-        index = len(self.report.actions)
-        numbered = self._listed_before + index + 1
-        self.report.actions.append(actions.write(self.armature, f"{self.armature.name} variant {numbered:02d}",
-                                                 self.job.frames, self.job.channels[index], self.job.switches))
+        """Start the next variant's Action or add about CHUNK_KEYS keys to it."""
+        job = self.job
+        if self._pending is None:
+            numbered = self._listed_before + self._written + 1
+            action, channelbag = actions.new(self.armature, f"{self.armature.name} variant {numbered:02d}")
+            self.report.actions.append(action)
+            actions.add_switches(channelbag, job.frames, job.switches)
+            self._pending = (channelbag, list(job.channels[self._written]))
+        channelbag, left = self._pending
+        count = max(1, CHUNK_KEYS // (4 * len(job.frames)))
+        actions.add_channels(self.armature, channelbag, job.frames, left[:count], self.sampled)
+        del left[:count]
+        if not left:
+            self._written, self._pending = self._written + 1, None
 
     def _measure_next(self):
         """Play the next variant on the measured frames and record each bound joint's distance to

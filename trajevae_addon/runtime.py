@@ -16,6 +16,7 @@ def _submodule(name):
     return importlib.import_module(f"{model_runtime.__name__}.{name}")
 
 
+curve_geometry = _submodule("curve_geometry")
 skeleton = _submodule("skeleton")
 generation = _submodule("generation")
 retarget = _submodule("retarget")

@@ -11,7 +11,7 @@ import json
 
 import bpy
 
-from . import rig_state
+from . import actions, rig_state
 
 
 def assign(armature, action):
@@ -83,6 +83,7 @@ def keep(armature, action):
     the file (fake user) as the armature's previous action."""
     set_active(armature, action)
     assign(armature, action)
+    actions.samples_to_keys(action)
     settings = armature.trajevae
     original = settings.original_action
     if original is not None:
