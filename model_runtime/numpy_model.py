@@ -6,7 +6,11 @@ It mirrors ``model.TrajeVAE`` and ``sampler.DiverseSampler`` in eval mode
 (tests check they agree).
 """
 
+import io
 import json
+import zipfile
+import zlib
+from pathlib import Path
 
 import numpy as np
 
@@ -14,11 +18,35 @@ from . import selection
 from .dct import dct_matrix
 from .skeleton import NUM_JOINTS
 
+REINSTALL = "reinstall the TrajeVAE extension"
+# What a cut or damaged archive, member or array header raises.
+_UNREADABLE = (OSError, EOFError, ValueError, KeyError, NotImplementedError, zipfile.BadZipFile, zlib.error)
 
-def _load(path):
-    with np.load(path, allow_pickle=False) as stored:
-        meta = json.loads(str(stored["__meta__"]))
-        arrays = {name: stored[name].astype(np.float32) for name in stored.files if name != "__meta__"}
+
+class WeightsError(ValueError):
+    """A weights file cannot be read; the message names it and says what to do."""
+
+
+def load_arrays(path, remedy=REINSTALL):
+    """({name: float32 array}, meta dict) of a weights .npz (arrays plus the config as JSON).
+
+    Each member is read whole, so its checksum is verified before numpy parses it (``np.load``
+    parses first: a flipped bit in an array header raised tokenize.TokenError), and parsed with
+    ``allow_pickle=False``: no pickled code is ever loaded. A missing, truncated or corrupt file
+    raises WeightsError.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise WeightsError(f"the weights file {path.name} is missing from {path.parent}; {remedy}")
+    try:
+        with zipfile.ZipFile(path) as archive:
+            stored = {name.removesuffix(".npy"): np.lib.format.read_array(io.BytesIO(archive.read(name)),
+                                                                          allow_pickle=False)
+                      for name in archive.namelist()}
+        meta = json.loads(str(stored.pop("__meta__")))
+        arrays = {name: array.astype(np.float32) for name, array in stored.items()}
+    except _UNREADABLE as error:
+        raise WeightsError(f"the weights file {path.name} in {path.parent} is damaged ({error}); {remedy}") from None
     return arrays, meta
 
 
@@ -103,7 +131,7 @@ class NumpyTrajeVAE:
     """Prior and decoder of TrajeVAE; arrays as in ``model.TrajeVAE`` (float32)."""
 
     def __init__(self, path):
-        arrays, self.meta = _load(path)
+        arrays, self.meta = load_arrays(path)
         self.config = self.meta["config"]
         first, latent = arrays["decoder_input.0.weight"], self.config["latent"]  # split as in model.TrajeVAE.prior
         arrays["decoder_input.0.weight_latent"] = np.ascontiguousarray(first[:, :latent])
@@ -220,7 +248,7 @@ class NumpySampler:
     """The diverse sampler's latents, as ``sampler.DiverseSampler.latents`` in eval mode."""
 
     def __init__(self, path):
-        arrays, self.meta = _load(path)
+        arrays, self.meta = load_arrays(path)
         self.config = self.meta["config"]
         self.weights = _Weights(arrays)
 

@@ -6,9 +6,12 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from . import numpy_model
+
 ASSETS = Path(__file__).resolve().parents[1] / "assets"
 MODEL_WEIGHTS = ASSETS / "trajevae.npz"
 SAMPLER_WEIGHTS = ASSETS / "sampler.npz"
+RESTORE = "restore it from the repository (git) or train it again (make train, make train-sampler)"
 
 
 def save(path, module, config, extra=None):
@@ -24,11 +27,10 @@ def save(path, module, config, extra=None):
 
 
 def load_state(path):
-    """(state dict of tensors, meta dict) from a file written by ``save``."""
-    with np.load(path, allow_pickle=False) as stored:
-        meta = json.loads(str(stored["__meta__"]))
-        state = {name: torch.from_numpy(stored[name]) for name in stored.files if name != "__meta__"}
-    return state, meta
+    """(state dict of tensors, meta dict) from a file written by ``save``; the add-on's checked,
+    unpickle-free reader, so a missing or damaged file is one sentence (``WeightsError``)."""
+    arrays, meta = numpy_model.load_arrays(path, remedy=RESTORE)
+    return {name: torch.from_numpy(array) for name, array in arrays.items()}, meta
 
 
 def load(path, module_class, config_class):

@@ -90,7 +90,9 @@ def _resampled(points, count=400):
 
 
 def _read(obj):
-    """The path the add-on follows for a bound object at frame 1, as the pipeline asks for it."""
+    """The path the add-on follows for a bound object at frame 1, as the pipeline asks for it
+    (after the scene is evaluated, which places moved objects)."""
+    bpy.context.view_layer.update()
     return curves.path(obj, 1)[0]
 
 

@@ -25,6 +25,29 @@ made = api.generate_variants(rig, n=2)
 print("API", api.__name__, mapping["LWrist"], len(made), hasattr(bpy.types, "TRAJEVAE_OT_generate"))
 """
 
+DAMAGED_WEIGHTS_SCRIPT = """
+import sys, bpy
+from pathlib import Path
+bpy.ops.extensions.package_install_files(filepath=sys.argv[1], repo="user_default", enable_on_install=True)
+extension = sys.modules["bl_ext.user_default.trajevae"]
+addon = extension.trajevae_addon
+assets = Path(extension.__file__).parent / "assets"
+rig = addon.mannequin.build_mannequin(bpy.context.scene)
+bpy.context.scene.frame_end = 20
+bpy.context.view_layer.objects.active = rig
+rig.trajevae.variant_count = 2
+(assets / "sampler.npz").unlink()
+print("SAMPLER", bpy.ops.trajevae.generate(), rig.trajevae.last_report)
+bpy.ops.trajevae.discard_variants()
+model = assets / "trajevae.npz"
+model.write_bytes(model.read_bytes()[: model.stat().st_size // 2])
+addon.inference.release()
+try:
+    bpy.ops.trajevae.generate()
+except RuntimeError as error:
+    print("MODEL", str(error).strip(), len(bpy.data.actions))
+"""
+
 
 @pytest.fixture(scope="module")
 def package(tmp_path_factory):
@@ -52,3 +75,15 @@ def test_installed_extension_enables_and_its_api_generates_without_torch(package
                             env=environment, cwd=tmp_path, timeout=300)
     line = next((l for l in result.stdout.splitlines() if l.startswith("API ")), None)
     assert line == "API bl_ext.user_default.trajevae.trajevae_addon.api LWrist 2 True", result.stdout + result.stderr
+
+
+def test_installed_extension_says_which_weights_are_missing_or_damaged(package, tmp_path):
+    environment = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path))
+    result = subprocess.run([sys.executable, "-c", DAMAGED_WEIGHTS_SCRIPT, str(package)], capture_output=True,
+                            text=True, env=environment, cwd=tmp_path, timeout=300)
+    lines = {line.split(" ", 1)[0]: line for line in result.stdout.splitlines() if line.startswith(("SAMPLER", "MODEL"))}
+    assert "SAMPLER {'FINISHED'}" in lines.get("SAMPLER", ""), result.stdout + result.stderr
+    assert "sampler.npz" in lines["SAMPLER"] and "missing" in lines["SAMPLER"]
+    model = lines.get("MODEL", "")
+    assert "trajevae.npz" in model and "reinstall the TrajeVAE extension" in model, result.stdout + result.stderr
+    assert model.endswith(" 0") and "Traceback" not in result.stderr

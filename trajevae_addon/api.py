@@ -15,32 +15,73 @@ Example (headless, see README)::
 Joint names are the canonical ones of ``model_runtime.skeleton.JOINT_NAMES``.
 """
 
-from . import pipeline, rig_state, variants
+import bpy
+import numpy as np
+
+from . import bindings, pipeline, rig_state, variants
+
+PATH_TYPES = {'CURVE', 'GREASEPENCIL'}
+
+
+def _object(obj, call, role):
+    """The object's type; TypeError where ``obj`` is not a Blender object, ValueError where it was deleted."""
+    if not isinstance(obj, bpy.types.Object):
+        raise TypeError(f"{call} needs {role} object, not {obj!r}")
+    try:
+        return obj.type
+    except ReferenceError:
+        raise ValueError(f"{call} was given {role} object that has been deleted") from None
+
+
+def _armature(obj, call, writes=False):
+    """``obj`` if it is an armature object (whose bindings this file can keep, where ``writes``),
+    else a sentence. Blender refuses new rows in an override's bindings, and a linked rig's would
+    be lost on save; Object > Relations > Make Local turns either into a local rig."""
+    kind = _object(obj, call, "an armature")
+    if kind != 'ARMATURE':
+        raise ValueError(f"{call} needs an armature, and {obj.name!r} is a {kind.lower()}")
+    if writes and obj.library is not None:
+        raise ValueError(f"{obj.name!r} is linked from {obj.library.filepath!r}, so its bindings would not be "
+                         "saved; make it local first (Object > Relations > Make Local)")
+    if writes and obj.override_library is not None:
+        raise ValueError(f"{obj.name!r} is a library override, whose bindings Blender cannot store; make it "
+                         "local first (Object > Relations > Make Local)")
+    return obj
 
 
 def map_rig(armature):
     """Canonical joint name -> bone name or None (detected, merged with the artist's overrides)."""
-    return rig_state.mapping(armature)
+    return rig_state.mapping(_armature(armature, "map_rig"))
 
 
 def bind_curve(armature, bone_name, curve_object, use_drawing_speed=True):
     """Make the joint carried by ``bone_name`` follow a Curve object or a Grease Pencil object's last
-    stroke (at its drawing speed unless told not to); replaces an earlier binding of the bone."""
+    stroke (at its drawing speed unless told not to); replaces an earlier binding of the bone,
+    also one made before the bone was renamed."""
+    _armature(armature, "bind_curve", writes=True)
+    if not isinstance(bone_name, str):
+        raise TypeError(f"bind_curve needs the bone's name as a string, not {bone_name!r}")
     if bone_name not in armature.pose.bones:
         raise ValueError(f"{armature.name!r} has no bone {bone_name!r}")
-    if curve_object is not None and curve_object.type not in {'CURVE', 'GREASEPENCIL'}:
-        raise ValueError(f"{curve_object.name!r} is a {curve_object.type.lower()}, not a curve or grease pencil")
-    bindings = armature.trajevae.bindings
-    existing = next((b for b in bindings if b.bone == bone_name), None)
-    binding = existing or bindings.add()
-    binding.bone, binding.curve, binding.use_drawing_speed = bone_name, curve_object, use_drawing_speed
+    kind = _object(curve_object, "bind_curve", "a curve or grease pencil")
+    if kind not in PATH_TYPES:
+        raise ValueError(f"{curve_object.name!r} is a {kind.lower()}, not a curve or grease pencil")
+    if not isinstance(use_drawing_speed, (bool, np.bool_)):
+        raise TypeError(f"use_drawing_speed must be True or False, not {use_drawing_speed!r}")
+    bones = rig_state.mapping(armature)
+    if bone_name not in bones.values():
+        raise ValueError(f"TrajeVAE does not move {bone_name!r} (no joint is mapped to it); "
+                         f"{bindings.mapped_bones_sentence(bones)}")
+    bindings.bind(armature, bone_name, curve_object, bool(use_drawing_speed))
 
 
 def unbind(armature, bone_name):
-    bindings = armature.trajevae.bindings
-    index = next((i for i, b in enumerate(bindings) if b.bone == bone_name), None)
-    if index is not None:
-        bindings.remove(index)
+    """Remove the binding of ``bone_name`` (its present name, or the last one of a deleted bone)."""
+    _armature(armature, "unbind", writes=True)
+    if not isinstance(bone_name, str):
+        raise TypeError(f"unbind needs the bone's name as a string, not {bone_name!r}")
+    if not bindings.unbind(armature, bone_name):
+        raise ValueError(f"no path is bound to {bone_name!r} on {armature.name!r}")
 
 
 def generate_variants(armature, n=5, seed=0, diversity=1.0):

@@ -1,11 +1,12 @@
 """Operators: generate, cycle, keep and discard variants; bind and unbind curves."""
 
 import threading
+import traceback
 
 import bpy
 from bpy.props import IntProperty
 
-from . import api, curves, pipeline, rig_state, variants
+from . import api, pipeline, rig_state, variants
 
 
 class _ArmatureOperator:
@@ -14,9 +15,9 @@ class _ArmatureOperator:
         return rig_state.active_armature(context) is not None
 
 
-class TRAJEVAE_OT_generate(_ArmatureOperator, bpy.types.Operator):
+class TRAJEVAE_OT_generate(bpy.types.Operator):
     """Generate N full-body motions over the scene frame range that follow the bound curves and keys.
-    The networks run in a worker while the interface stays live; Esc cancels"""
+    The networks run in a worker while the interface stays live; Esc cancels and writes nothing"""
 
     bl_idname = "trajevae.generate"
     bl_label = "Generate Variants"
@@ -25,8 +26,16 @@ class TRAJEVAE_OT_generate(_ArmatureOperator, bpy.types.Operator):
     _job = None
     _armature_name = ""
     _worker = None
+    _writer = None
     _error = None
     _timer = None
+
+    @classmethod
+    def poll(cls, context):
+        reason = rig_state.unusable_reason(rig_state.active_armature(context))
+        if reason:
+            cls.poll_message_set(reason[0].upper() + reason[1:])
+        return reason is None
 
     def _start(self, context):
         armature = rig_state.active_armature(context)
@@ -35,27 +44,43 @@ class TRAJEVAE_OT_generate(_ArmatureOperator, bpy.types.Operator):
         try:
             self._job = pipeline.prepare(armature, settings.variant_count, settings.seed, settings.diversity,
                                          context.scene)
-        except (rig_state.RigError, curves.CurveError) as error:
+        except pipeline.USER_ERRORS as error:
             self.report({'ERROR'}, str(error))
             return False
         return True
 
-    def _finish(self, context):
+    def _armature(self):
         armature = bpy.data.objects.get(self._armature_name)
         if armature is None:
-            self.report({'ERROR'}, f"{self._armature_name!r} was deleted during generation")
-            return {'CANCELLED'}
-        report = pipeline.finish(self._job, armature)
+            raise rig_state.RigError(f"{self._armature_name!r} was deleted or renamed during generation; "
+                                     "nothing was written")
+        return armature
+
+    def _done(self, report):
         errors = ", ".join(f"{100 * e:.1f}" for e in report.curve_error_m)
         self.report({'INFO'}, f"{len(report.actions)} variants in {sum(report.seconds.values()):.2f} s"
-                              + (f"; curve error (cm): {errors}" if self._job.curve_paths else ""))
+                              + (f"; curve error as played (cm): {errors}" if self._job.curve_paths else ""))
+        for warning in report.warnings:
+            self.report({'WARNING'}, warning)
         return {'FINISHED'}
+
+    def _failed(self, error):
+        """Undo whatever was written and say why in one sentence."""
+        if self._writer is not None:
+            self._writer.rollback()
+        if not isinstance(error, pipeline.USER_ERRORS):
+            traceback.print_exception(error)  # a fault of the add-on: details for the console
+        self.report({'ERROR'}, f"generation failed, nothing was written: {error}")
+        return {'CANCELLED'}
 
     def execute(self, context):  # scripts and headless runs: synchronous
         if not self._start(context):
             return {'CANCELLED'}
-        pipeline.infer(self._job)
-        return self._finish(context)
+        try:
+            pipeline.infer(self._job)
+            return self._done(pipeline.finish(self._job, self._armature()))
+        except Exception as error:
+            return self._failed(error)
 
     def invoke(self, context, event):
         if not self._start(context):
@@ -78,25 +103,34 @@ class TRAJEVAE_OT_generate(_ArmatureOperator, bpy.types.Operator):
         return {'RUNNING_MODAL'}
 
     def modal(self, context, event):
-        window_manager = context.window_manager
         if event.type == 'ESC':
             self._job.cancel_event.set()
             self._worker.join()
+            if self._writer is not None:
+                self._writer.rollback()
             self._stop(context)
             self.report({'INFO'}, "generation cancelled; nothing was written")
             return {'CANCELLED'}
         if event.type != 'TIMER':
             return {'PASS_THROUGH'}
-        window_manager.progress_update(self._job.progress)
+        if not self._worker.is_alive():
+            try:
+                if self._error is not None:
+                    raise self._error
+                if self._writer is None:
+                    self._writer = pipeline.Writer(self._job, self._armature())
+                self._writer.step()
+            except Exception as error:
+                self._stop(context)
+                return self._failed(error)
+        progress = self._writer.progress if self._writer is not None else self._job.progress
+        context.window_manager.progress_update(progress)
         context.workspace.status_text_set(f"TrajeVAE: generating {self._job.count} variants "
-                                          f"{100 * self._job.progress:.0f}% (Esc to cancel)")
-        if self._worker.is_alive():
+                                          f"{100 * progress:.0f}% (Esc to cancel)")
+        if self._writer is None or not self._writer.done:
             return {'RUNNING_MODAL'}
         self._stop(context)
-        if self._error is not None:
-            self.report({'ERROR'}, f"generation failed: {self._error}")
-            return {'CANCELLED'}
-        return self._finish(context)
+        return self._done(self._writer.report)
 
     def _stop(self, context):
         window_manager = context.window_manager
@@ -135,7 +169,11 @@ class TRAJEVAE_OT_keep_variant(_ArmatureOperator, bpy.types.Operator):
         if not 0 <= settings.active_variant < len(settings.variants):
             self.report({'ERROR'}, "no variant to keep")
             return {'CANCELLED'}
-        variants.keep(armature, settings.variants[settings.active_variant].action)
+        kept = settings.variants[settings.active_variant].action
+        variants.keep(armature, kept)
+        previous = settings.previous_action
+        self.report({'INFO'}, f"kept {kept.name!r}" + (f"; the previous action {previous.name!r} stays in the file "
+                                                        "(fake user)" if previous is not None else ""))
         return {'FINISHED'}
 
 
@@ -166,7 +204,11 @@ class TRAJEVAE_OT_bind_curve(_ArmatureOperator, bpy.types.Operator):
             self.report({'ERROR'}, "select a curve or grease pencil, then the armature with the bone to bind "
                                    "active")
             return {'CANCELLED'}
-        api.bind_curve(armature, bone.name, curve)
+        try:
+            api.bind_curve(armature, bone.name, curve)
+        except ValueError as error:
+            self.report({'ERROR'}, str(error))
+            return {'CANCELLED'}
         return {'FINISHED'}
 
 

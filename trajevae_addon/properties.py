@@ -37,6 +37,18 @@ class TRAJEVAE_PG_binding(PropertyGroup):
                            description="Curve object or Grease Pencil stroke, followed from its first point")
     use_drawing_speed: BoolProperty(name="Drawing speed", default=True,
                                     description="Follow a stroke at the speed it was drawn (else evenly)")
+    bone_tag: StringProperty(description="The tag this binding put on its pose bone, which follows "
+                                         "renames (see bindings.py)")
+
+    @classmethod
+    def register(cls):
+        """The bone side of the tag, registered with the binding that sets it (a registered
+        property, unlike a custom one, is not listed among the artist's custom properties)."""
+        bpy.types.PoseBone.trajevae_tag = StringProperty(description="TrajeVAE binding tag, kept across renames")
+
+    @classmethod
+    def unregister(cls):
+        del bpy.types.PoseBone.trajevae_tag
 
 
 class TRAJEVAE_PG_variant(PropertyGroup):
@@ -62,6 +74,10 @@ class TRAJEVAE_PG_settings(PropertyGroup):
     original_action: PointerProperty(type=bpy.types.Action)
     original_slot: StringProperty(description="Identifier of the original action's slot")
     original_switches: StringProperty(description="JSON of rig switch values before generation")
+    original_pose: StringProperty(description="JSON of every pose bone's channels before generation")
+    previous_action: PointerProperty(type=bpy.types.Action, name="Previous action",
+                                     description="The artist's action before the last Keep (kept with a fake user)")
+    last_report: StringProperty(description="What the last generation wants the artist to know, one line each")
 
 
 CLASSES = (TRAJEVAE_PG_joint_bones, TRAJEVAE_PG_binding, TRAJEVAE_PG_variant, TRAJEVAE_PG_settings)

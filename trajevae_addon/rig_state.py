@@ -26,7 +26,7 @@ def unusable_reason(armature):
         return "select an armature to generate motion for"
     if armature.override_library is not None:
         return (f"{armature.name!r} is a library override, whose variant list Blender cannot keep across save "
-                "and reload; make it local first (Object > Library Override > Make Local)")
+                "and reload; make it local first (Object > Relations > Make Local)")
     if armature.library is not None:
         return (f"{armature.name!r} is linked from {armature.library.filepath!r} and cannot be animated here; "
                 "make it local first (Object > Relations > Make Local)")

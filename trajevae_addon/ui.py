@@ -8,8 +8,14 @@ from .runtime import skeleton
 
 class TRAJEVAE_UL_bindings(bpy.types.UIList):
     def draw_item(self, context, layout, data, item, icon, active_data, active_property, index=0, flt_flag=0):
+        """The bone (by its present name) and its path; a binding that cannot be followed is drawn in
+        red with the reason, and its empty path field lets the artist pick a new one."""
+        armature = data.id_data
+        problem = bindings.problem(armature, item, rig_state.mapping(armature))
         row = layout.row(align=True)
-        row.label(text=item.bone, icon='BONE_DATA')
+        row.alert = problem is not None
+        bone = bindings.bone_of(armature, item) or item.bone
+        row.label(text=f"{bone} ({problem})" if problem else bone, icon='ERROR' if problem else 'BONE_DATA')
         row.prop(item, "curve", text="")
         if item.curve is not None and item.curve.type == 'GREASEPENCIL':
             row.prop(item, "use_drawing_speed", text="", icon='TIME')
@@ -56,7 +62,7 @@ class TRAJEVAE_PT_main(_SidebarPanel, bpy.types.Panel):
         column.operator("trajevae.bind_curve", icon='ADD', text="")
         column.operator("trajevae.unbind", icon='REMOVE', text="")
         bones = rig_state.mapping(armature)
-        listed = {b.bone for b in settings.bindings}
+        listed = {bindings.bone_of(armature, b) for b in settings.bindings}
         for bone in bones.values():
             if bone and bone not in listed:
                 for constraint in bindings.path_constraints(armature, bone):
@@ -72,7 +78,6 @@ class TRAJEVAE_PT_main(_SidebarPanel, bpy.types.Panel):
         column.prop(settings, "diversity", slider=True)
         generate = layout.row()
         generate.scale_y = 1.4
-        generate.enabled = not gaps
         generate.operator("trajevae.generate", text=f"Generate {settings.variant_count} Variants", icon='PLAY')
 
         if len(settings.variants):
@@ -84,6 +89,10 @@ class TRAJEVAE_PT_main(_SidebarPanel, bpy.types.Panel):
             row.operator("trajevae.step_variant", text="", icon='TRIA_RIGHT').step = 1
             row.operator("trajevae.keep_variant", icon='CHECKMARK')
             row.operator("trajevae.discard_variants", icon='X')
+        for line in filter(None, settings.last_report.split("\n")):
+            layout.label(text=line, icon='ERROR')
+        if settings.previous_action is not None:
+            layout.label(text=f"Previous action: {settings.previous_action.name} (kept in the file)", icon='ACTION')
 
 
 class TRAJEVAE_PT_mapping(_SidebarPanel, bpy.types.Panel):
