@@ -3,7 +3,7 @@ PYTHON ?= python3.11
 VENV := .venv
 PY := $(VENV)/bin/python
 
-.PHONY: setup demo test bench-data bench-model bench-blender package train train-sampler evaluate clean
+.PHONY: setup demo test bench-data bench-model bench-blender bench-scale package train train-sampler evaluate clean
 
 $(VENV)/.installed: requirements.txt
 	$(PYTHON) -m venv $(VENV)
@@ -27,6 +27,9 @@ bench-model: setup
 
 bench-blender: setup
 	$(PY) benchmarks/blender_generate.py
+
+bench-scale: setup
+	$(PY) benchmarks/blender_scale.py
 
 # The extension zip, built and validated by Blender's own tool (out/trajevae-VERSION.zip).
 BLENDER_EXT = $(VENV)/lib/python3.11/site-packages/bpy/5.0/scripts/addons_core/bl_pkg/cli/blender_ext.py

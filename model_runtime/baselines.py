@@ -7,7 +7,7 @@ motions (T, 17, 3), and pin the given joints onto their trajectories.
 import numpy as np
 
 from . import augment
-from .skeleton import JOINT_INDEX, facing
+from .skeleton import facing
 
 
 def pin(motion, trajectories, mask):

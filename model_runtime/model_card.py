@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from . import selection, weights
-from .data import clips, dataset
+from .data import clips
 from .evaluate import METRICS
 
 ATTRIBUTION = """- The data used in this project was obtained from mocap.cs.cmu.edu. The database was created

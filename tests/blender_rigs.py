@@ -41,6 +41,29 @@ def action_keys(action):
     return out
 
 
+def world_joints(rig):
+    """The rig's 17 joints (17, 3) in world space as Blender shows it now."""
+    from trajevae_addon import api, rig_state
+    return rig_state.read(rig, api.map_rig(rig), bpy.context.evaluated_depsgraph_get())[1]
+
+
+def played(rig, frames):
+    """(joints (F, 17, 3), toes (F, 2, 3): right, left) in world space as Blender plays the rig on
+    ``frames``, read from the bones the artist sees (a Rigify rig's ORG bones); a toe is the tail
+    of the foot's bone."""
+    from trajevae_addon import api, rig_mapping, rig_state
+    scene, bones = bpy.context.scene, api.map_rig(rig)
+    shown = rig_mapping.shown_by(rig_state.detected(rig)[0])
+    feet = [shown.get(bones[foot], bones[foot]) for foot in ("RFoot", "LFoot")]
+    joints, toes = [], []
+    for frame in frames:
+        scene.frame_set(int(frame))
+        joints.append(rig_state.read(rig, bones, bpy.context.evaluated_depsgraph_get(), shown)[1])
+        world = np.array(rig.matrix_world)
+        toes.append([world[:3, :3] @ np.array(rig.pose.bones[foot].tail) + world[:3, 3] for foot in feet])
+    return np.array(joints), np.array(toes)
+
+
 def fresh_scene():
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene

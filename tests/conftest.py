@@ -1,4 +1,5 @@
-"""Shared fixtures: the real CMU/ACCAD motion capture beside the repository."""
+"""Shared fixtures: the real CMU/ACCAD motion capture beside the repository, and a Blender scene
+with the add-on registered."""
 
 import pytest
 
@@ -22,3 +23,14 @@ def all_clips(mocap_root):
     loaded, errors = dataset.load_clips([mocap_root])
     assert errors == []
     return loaded
+
+
+@pytest.fixture
+def scene():
+    """An empty scene (frames 1-60) with the add-on registered; unregistered afterwards."""
+    import blender_rigs
+    import trajevae_addon
+    scene = blender_rigs.fresh_scene()
+    trajevae_addon.register()
+    yield scene
+    trajevae_addon.unregister()

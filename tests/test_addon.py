@@ -12,12 +12,7 @@ HAND_AND_FOOT = {"LWrist": (0.0, -0.35, 0.25), "RWrist": (0.15, -0.3, 0.1), "LFo
                  "RFoot": (0.0, -0.6, 0.0)}
 
 
-@pytest.fixture(autouse=True)
-def registered():
-    scene = blender_rigs.fresh_scene()
-    trajevae_addon.register()
-    yield scene
-    trajevae_addon.unregister()
+pytestmark = pytest.mark.usefixtures("scene")
 
 
 def _joint_world(rig, joint, bones=None):
@@ -84,8 +79,8 @@ def _check_variants(rig, made, count):
             assert np.abs(motions[a] - motions[b]).max() > 0.05  # clearly different keys
 
 
-def test_mannequin_follows_0_1_2_4_curves_and_leaves_the_original_action_alone(registered):
-    scene = registered
+def test_mannequin_follows_0_1_2_4_curves_and_leaves_the_original_action_alone(scene):
+    scene = scene
     rig = blender_rigs.mannequin_rig(scene)
     rig.pose.bones["Spine"].rotation_quaternion = (0.99, 0.1, 0.0, 0.0)
     rig.pose.bones["Spine"].keyframe_insert("rotation_quaternion", frame=1)
@@ -109,13 +104,13 @@ def test_mannequin_follows_0_1_2_4_curves_and_leaves_the_original_action_alone(r
 
 
 @pytest.fixture
-def rigify(registered):
-    yield blender_rigs.rigify_rig(registered)
+def rigify(scene):
+    yield blender_rigs.rigify_rig(scene)
     blender_rigs.disable_rigify()
 
 
-def test_generated_rigify_rig_is_keyed_on_its_fk_controls(registered, rigify):
-    scene, rig = registered, rigify
+def test_generated_rigify_rig_is_keyed_on_its_fk_controls(scene, rigify):
+    scene, rig = scene, rigify
     assert api.map_rig(rig)["LWrist"] == "hand_fk.L"
     rig.pose.bones["foot_ik.L"].location = (0.0, 0.1, 0.25)  # the artist poses the left leg in IK
     bpy.context.view_layer.update()
@@ -136,8 +131,8 @@ def test_generated_rigify_rig_is_keyed_on_its_fk_controls(registered, rigify):
     assert all(error < 0.05 for error in errors.values())
 
 
-def test_mixamo_centimetre_rig_turned_and_moved_with_mixed_rotation_modes(registered):
-    scene = registered
+def test_mixamo_centimetre_rig_turned_and_moved_with_mixed_rotation_modes(scene):
+    scene = scene
     rig = blender_rigs.mixamo_rig(scene)
     assert api.map_rig(rig)["Spine"] == "mixamorig:Spine"
     _bind(scene, rig, ("LWrist", "RFoot"))
@@ -151,8 +146,8 @@ def test_mixamo_centimetre_rig_turned_and_moved_with_mixed_rotation_modes(regist
     assert all(error < 0.05 for error in errors.values())
 
 
-def test_armature_imported_from_cmu_bvh(registered, mocap_root):
-    scene = registered
+def test_armature_imported_from_cmu_bvh(scene, mocap_root):
+    scene = scene
     rig = blender_rigs.bvh_rig(mocap_root / "cmu_mb_01-09" / "02" / "02_01.bvh")
     bones = api.map_rig(rig)
     assert not rig_state.rig_mapping.missing(bones)
@@ -165,8 +160,8 @@ def test_armature_imported_from_cmu_bvh(registered, mocap_root):
     assert all(error / scale * 0.81 < 0.05 for error in errors.values())
 
 
-def test_variants_survive_save_and_reload_then_keep(registered, tmp_path):
-    scene = registered
+def test_variants_survive_save_and_reload_then_keep(scene, tmp_path):
+    scene = scene
     rig = blender_rigs.mannequin_rig(scene)
     _bind(scene, rig, ("RWrist",))
     made = api.generate_variants(rig, n=3, seed=4)
@@ -187,8 +182,8 @@ def test_variants_survive_save_and_reload_then_keep(registered, tmp_path):
     assert [a.name for a in bpy.data.actions] == [names[1]] and len(rig.trajevae.variants) == 0
 
 
-def test_clear_errors_and_operators(registered):
-    scene = registered
+def test_clear_errors_and_operators(scene):
+    scene = scene
     rig = blender_rigs.mannequin_rig(scene)
     scene.frame_end = scene.frame_start
     with pytest.raises(rig_state.RigError, match="single frame"):
@@ -206,7 +201,7 @@ def test_clear_errors_and_operators(registered):
     assert rig.animation_data.action is None and not bpy.data.actions
 
 
-def test_register_unregister_register_leaves_nothing_behind(registered):
+def test_register_unregister_register_leaves_nothing_behind(scene):
     trajevae_addon.unregister()
     assert not hasattr(bpy.types.Object, "trajevae")
     assert not [name for name in dir(bpy.types) if name.startswith("TRAJEVAE_")]
@@ -214,8 +209,8 @@ def test_register_unregister_register_leaves_nothing_behind(registered):
     assert hasattr(bpy.types.Object, "trajevae")
 
 
-def test_child_sized_rig_and_a_stored_mapping_override(registered, tmp_path):
-    scene = registered
+def test_child_sized_rig_and_a_stored_mapping_override(scene, tmp_path):
+    scene = scene
     rig = blender_rigs.mannequin_rig(scene)
     rig.scale = (0.65, 0.65, 0.65)
     _bind(scene, rig, ("RWrist", "LFoot"), scale=0.65)

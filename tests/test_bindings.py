@@ -11,12 +11,7 @@ import trajevae_addon
 from trajevae_addon import api, bindings, rig_state
 
 
-@pytest.fixture(autouse=True)
-def scene():
-    scene = blender_rigs.fresh_scene()
-    trajevae_addon.register()
-    yield scene
-    trajevae_addon.unregister()
+pytestmark = pytest.mark.usefixtures("scene")
 
 
 @pytest.fixture

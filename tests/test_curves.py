@@ -5,20 +5,11 @@ import numpy as np
 import pytest
 
 import blender_rigs
-import trajevae_addon
 from model_runtime import curve_geometry
 from trajevae_addon import api, curves
 
 WAVE = np.array([[0.0, 0.0, 1.0], [0.4, -0.3, 1.2], [0.9, -0.2, 0.8], [1.3, 0.3, 1.1], [1.6, 0.1, 1.5],
                  [2.0, -0.4, 1.3], [2.3, 0.2, 0.9]])  # (7, 3) control points of a wavy path in metres
-
-
-@pytest.fixture
-def scene():
-    scene = blender_rigs.fresh_scene()
-    trajevae_addon.register()
-    yield scene
-    trajevae_addon.unregister()
 
 
 def _linked(scene, name, data):

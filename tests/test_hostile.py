@@ -10,19 +10,10 @@ import numpy as np
 import pytest
 
 import blender_rigs
-import trajevae_addon
 from model_runtime.skeleton import JOINT_INDEX
 from trajevae_addon import api, pipeline, rig_state
 
 NAN, INF = float("nan"), float("inf")
-
-
-@pytest.fixture
-def scene():
-    scene = blender_rigs.fresh_scene()
-    trajevae_addon.register()
-    yield scene
-    trajevae_addon.unregister()
 
 
 def _hand(rig):

@@ -9,7 +9,7 @@ import torch
 
 from model_runtime import masks, metrics, train, weights
 from model_runtime.data import dataset
-from model_runtime.model import ModelConfig, TrajeVAE, with_given_joints
+from model_runtime.model import ModelConfig, with_given_joints
 
 
 @pytest.fixture(scope="module")

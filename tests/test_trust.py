@@ -7,27 +7,17 @@ import pytest
 from mathutils import Quaternion
 
 import blender_rigs
-import trajevae_addon
 from model_runtime.skeleton import JOINT_INDEX
 from trajevae_addon import api, pipeline, rig_state
 
 
-@pytest.fixture(autouse=True)
-def scene():
-    scene = blender_rigs.fresh_scene()
-    trajevae_addon.register()
-    yield scene
-    trajevae_addon.unregister()
-
-
-def _world_joints(rig):
-    return rig_state.read(rig, api.map_rig(rig), bpy.context.evaluated_depsgraph_get())[1]
+pytestmark = pytest.mark.usefixtures("scene")
 
 
 def _hand_curve(scene, rig, name="hand path", joint="RWrist", offset=(0.1, -0.35, 0.25)):
     """A curve from the joint's position at the start frame, moving by ``offset`` (world)."""
     scene.frame_set(scene.frame_start)
-    start = _world_joints(rig)[JOINT_INDEX[joint]]
+    start = blender_rigs.world_joints(rig)[JOINT_INDEX[joint]]
     t = np.linspace(0.0, 1.0, 12)[:, None]
     curve = blender_rigs.curve(scene, name, start + t * offset)
     api.bind_curve(rig, api.map_rig(rig)[joint], curve)
@@ -44,7 +34,7 @@ def _played_error(scene, rig, joint, curve):
     errors = []
     for index, frame in enumerate(frames):
         scene.frame_set(int(frame))
-        errors.append(np.linalg.norm(_world_joints(rig)[JOINT_INDEX[joint]] - wanted[index]))
+        errors.append(np.linalg.norm(blender_rigs.world_joints(rig)[JOINT_INDEX[joint]] - wanted[index]))
     return float(np.mean(errors))
 
 
@@ -252,7 +242,7 @@ def test_a_constraint_that_overrides_the_keys_is_named_and_its_error_reported(sc
 ])
 def test_curves_out_of_reach_are_said_per_binding_and_nothing_written(scene, case, message):
     rig = blender_rigs.mannequin_rig(scene)
-    start = _world_joints(rig)[JOINT_INDEX["RWrist"]]
+    start = blender_rigs.world_joints(rig)[JOINT_INDEX["RWrist"]]
     t = np.linspace(0.0, 1.0, 50)[:, None]
     points = {"far": start + [100.0, 0.0, 0.0] + t * [0.2, 0.0, 0.0],
               "long": start + t * [1000.0, 0.0, 0.0],

@@ -8,22 +8,12 @@ import pytest
 from mathutils import Quaternion
 
 import blender_rigs
-import trajevae_addon
 from model_runtime import generation
 from model_runtime.skeleton import JOINT_INDEX
 from trajevae_addon import api, inference, pipeline, rig_state
 
 
-@pytest.fixture(autouse=True)
-def scene():
-    scene = blender_rigs.fresh_scene()
-    trajevae_addon.register()
-    yield scene
-    trajevae_addon.unregister()
-
-
-def _world_joints(rig):
-    return rig_state.read(rig, api.map_rig(rig), bpy.context.evaluated_depsgraph_get())[1]
+pytestmark = pytest.mark.usefixtures("scene")
 
 
 def test_keys_constrain_their_joints_on_their_frames_only(scene):
@@ -41,13 +31,13 @@ def test_keys_constrain_their_joints_on_their_frames_only(scene):
         pose[bone].keyframe_insert("rotation_quaternion", frame=40)
     pose["Hip"].keyframe_insert("location", frame=40)
     scene.frame_set(40)
-    keyed = _world_joints(rig)
+    keyed = blender_rigs.world_joints(rig)
     scene.frame_set(1)
     made = api.generate_variants(rig, n=3, seed=0)
     for action in made:
         api.set_active_variant(rig, action)
         scene.frame_set(40)
-        got = _world_joints(rig)
+        got = blender_rigs.world_joints(rig)
         for joint in ("LWrist", "RFoot", "RKnee", "Hip"):
             error = np.linalg.norm(got[JOINT_INDEX[joint]] - keyed[JOINT_INDEX[joint]])
             assert error < 0.01, (action.name, joint, error)
@@ -55,7 +45,7 @@ def test_keys_constrain_their_joints_on_their_frames_only(scene):
     for action in made:
         api.set_active_variant(rig, action)
         scene.frame_set(20)
-        at_20.append(_world_joints(rig)[JOINT_INDEX["LWrist"]])
+        at_20.append(blender_rigs.world_joints(rig)[JOINT_INDEX["LWrist"]])
     assert max(np.linalg.norm(a - b) for a in at_20 for b in at_20) > 0.02  # free between the keys
 
 
@@ -64,7 +54,7 @@ def test_a_300_frame_shot_has_no_seams_and_curves_are_followed_within_a_centimet
     scene.render.fps = 24
     rig = blender_rigs.mannequin_rig(scene)
     bones = api.map_rig(rig)
-    start = _world_joints(rig)[JOINT_INDEX["RWrist"]]
+    start = blender_rigs.world_joints(rig)[JOINT_INDEX["RWrist"]]
     t = np.linspace(0.0, 1.0, 40)[:, None]
     path = start + np.column_stack([0.3 * np.sin(2 * np.pi * t[:, 0]), -1.5 * t[:, 0], 0.2 * np.sin(np.pi * t[:, 0])])
     api.bind_curve(rig, bones["RWrist"], blender_rigs.curve(scene, "long path", path))
@@ -137,7 +127,7 @@ def _grease_pencil(scene, points, times):
 def test_grease_pencil_stroke_followed_at_its_drawing_speed(scene):
     scene.frame_end = 61
     rig = blender_rigs.mannequin_rig(scene)
-    start = _world_joints(rig)[JOINT_INDEX["RWrist"]]
+    start = blender_rigs.world_joints(rig)[JOINT_INDEX["RWrist"]]
     points = start + np.linspace(0.0, 1.0, 21)[:, None] * [0.0, -0.4, 0.3]
     times = np.concatenate([np.linspace(0.0, 1.5, 11), np.linspace(1.6, 2.0, 10)])  # slow, then fast
     stroke = _grease_pencil(scene, points, times)
@@ -157,7 +147,7 @@ def test_grease_pencil_stroke_followed_at_its_drawing_speed(scene):
 
 def test_follow_path_constraint_counts_as_a_binding_and_is_restored(scene):
     rig = blender_rigs.mannequin_rig(scene)
-    start = _world_joints(rig)[JOINT_INDEX["LWrist"]]
+    start = blender_rigs.world_joints(rig)[JOINT_INDEX["LWrist"]]
     path = blender_rigs.curve(scene, "constraint path", start + np.linspace(0, 1, 8)[:, None] * [0.1, -0.3, 0.2])
     constraint = rig.pose.bones["LWrist"].constraints.new('FOLLOW_PATH')
     constraint.target = path

@@ -1,0 +1,103 @@
+"""What an animator sees in a shot, as figures: sliding feet, floating or sinking, pops, steps,
+lean, knee direction, spread between variants (../shared/notes/quality-measures.md).
+
+Inputs are world positions as Blender plays the rig (metres, Z up): the 17
+joints (F, 17, 3) and the toes (F, 2, 3, right then left: each foot bone's
+tail), at the scene's ``fps``. Pure numpy, so the same figures serve the
+add-on's tests, its benchmark and real capture imported into Blender.
+"""
+
+import numpy as np
+
+from .skeleton import JOINT_INDEX
+
+J = JOINT_INDEX
+PLANTED_BAND_M = 0.02  # a toe this close to the floor is planted
+AIRBORNE_M = 0.03  # both toes higher than this: the body is off the ground
+STEP_LIFT_M = 0.04  # a foot lifted this far above the floor ...
+STEP_LENGTH_M = 0.15  # ... and landing this far away (horizontally) made a step
+
+
+def floor_height(toes):
+    """The floor under a shot that starts standing: the lower toe at its first frame."""
+    return float(toes[0, :, 2].min())
+
+
+def planted_toe_speed(toes, fps, floor, band=PLANTED_BAND_M):
+    """Mean horizontal speed (m/s, central differences) of toes within ``band`` of the floor,
+    averaged over the feet that are ever planted; 0 where none is."""
+    velocity = np.gradient(toes[..., :2], axis=0) * fps
+    speed = np.linalg.norm(velocity, axis=-1)  # (F, 2)
+    planted = toes[..., 2] - floor < band
+    means = [speed[planted[:, foot], foot].mean() for foot in range(toes.shape[1]) if planted[:, foot].any()]
+    return float(np.mean(means)) if means else 0.0
+
+
+def floating(toes, floor):
+    """(highest lower-toe height over the shot (m), share of frames with both toes above
+    AIRBORNE_M, deepest sink below the floor (m, positive))."""
+    lower = toes[..., 2].min(axis=1) - floor
+    airborne = (toes[..., 2] - floor > AIRBORNE_M).all(axis=1)
+    return float(lower.max()), float(airborne.mean()), float(max(0.0, -lower.min()))
+
+
+def accelerations(joints, fps):
+    """Per frame, the largest joint acceleration (F - 2,) in m/s^2 (second differences)."""
+    return np.linalg.norm(np.diff(joints, n=2, axis=0), axis=-1).max(axis=1) * fps ** 2
+
+
+def pops(joints, fps):
+    """(worst joint acceleration (m/s^2), worst frame's over the median frame's)."""
+    per_frame = accelerations(joints, fps)
+    return float(per_frame.max()), float(per_frame.max() / max(np.median(per_frame), 1e-9))
+
+
+def steps(toes, floor):
+    """Steps per foot (2,): a lift above the floor by STEP_LIFT_M followed by a landing at least
+    STEP_LENGTH_M (horizontally) from where the foot left."""
+    counts = []
+    for foot in range(toes.shape[1]):
+        height = toes[:, foot, 2] - floor
+        count, lifted_from = 0, None
+        for frame in range(len(height)):
+            if lifted_from is None and height[frame] > STEP_LIFT_M:
+                lifted_from = toes[max(frame - 1, 0), foot, :2]
+            elif lifted_from is not None and height[frame] < PLANTED_BAND_M:
+                count += np.linalg.norm(toes[frame, foot, :2] - lifted_from) >= STEP_LENGTH_M
+                lifted_from = None
+        counts.append(int(count))
+    return counts
+
+
+def lean_degrees(joints):
+    """Per frame, the angle (F,) of Hip -> Thorax from vertical, degrees."""
+    up = joints[:, J["Thorax"]] - joints[:, J["Hip"]]
+    return np.degrees(np.arccos(np.clip(up[:, 2] / np.linalg.norm(up, axis=-1), -1.0, 1.0)))
+
+
+def knee_inward_degrees(joints):
+    """Per frame and leg (F, 2), how far each knee points inward of the body's forward direction,
+    degrees (0: straight ahead or outward; 90: toward the other leg). Knock-knees and crossed
+    shins read high; a straight leg has no direction and reads 0."""
+    across = joints[:, J["LHip"]] - joints[:, J["RHip"]]
+    across[:, 2] = 0.0
+    across /= np.maximum(np.linalg.norm(across, axis=-1, keepdims=True), 1e-9)
+    out = []
+    for hip, knee, ankle, inward in (("RHip", "RKnee", "RFoot", 1.0), ("LHip", "LKnee", "LFoot", -1.0)):
+        axis = joints[:, J[ankle]] - joints[:, J[hip]]
+        axis /= np.maximum(np.linalg.norm(axis, axis=-1, keepdims=True), 1e-9)
+        bend = joints[:, J[knee]] - joints[:, J[hip]]
+        bend -= np.sum(bend * axis, axis=-1, keepdims=True) * axis
+        size = np.linalg.norm(bend, axis=-1)
+        sideways = inward * np.sum(bend * across, axis=-1) / np.maximum(size, 1e-9)
+        angle = np.degrees(np.arcsin(np.clip(sideways, 0.0, 1.0)))
+        out.append(np.where(size > 0.01, angle, 0.0))
+    return np.stack(out, axis=1)
+
+
+def spread(variants):
+    """Mean over pairs of variants (V, F, J, 3) of their mean joint distance (m); 0 for one."""
+    count = len(variants)
+    pairs = [np.linalg.norm(variants[a] - variants[b], axis=-1).mean()
+             for a in range(count) for b in range(a + 1, count)]
+    return float(np.mean(pairs)) if pairs else 0.0
