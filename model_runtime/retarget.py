@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import rotations
 from .skeleton import JOINT_INDEX
 
 J = JOINT_INDEX
@@ -293,3 +294,25 @@ def bone_bases(rig, deltas):
         moved = _rigid_inverse(by_bone[driver]) @ delta if driver in by_bone else delta
         bases[bone] = from_parent_space @ moved @ initial
     return bases
+
+
+def _rotation_channel(mode, matrices):
+    """(property, values (F, C)) of rotations (F, 3, 3) in a bone's rotation ``mode``."""
+    if mode == 'QUATERNION':
+        return "rotation_quaternion", rotations.continuous(rotations.from_matrix(matrices))
+    if mode == 'AXIS_ANGLE':
+        return "rotation_axis_angle", rotations.to_axis_angle(rotations.continuous(rotations.from_matrix(matrices)))
+    return "rotation_euler", rotations.to_euler(matrices, mode)
+
+
+def key_channels(bases, rotation_modes, root_bone):
+    """[(bone, property, values (F, C) float32)] to key from each bone's matrix_basis (F, 4, 4):
+    rotation in the bone's own mode ({bone: Blender rotation mode}) for every bone, location for
+    the root."""
+    out = []
+    for bone, basis in bases.items():
+        rotation = basis[:, :3, :3] / np.linalg.norm(basis[:, :3, :3], axis=1, keepdims=True)
+        out.append((bone, *_rotation_channel(rotation_modes[bone], rotation)))
+        if bone == root_bone:
+            out.append((bone, "location", basis[:, :3, 3]))
+    return [(bone, prop, np.asarray(values, dtype=np.float32)) for bone, prop, values in out]

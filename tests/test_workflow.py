@@ -8,7 +8,7 @@ import pytest
 from mathutils import Quaternion
 
 import blender_rigs
-from model_runtime import generation
+from model_runtime import generation, shot
 from model_runtime.skeleton import JOINT_INDEX
 from trajevae_addon import api, inference, pipeline, rig_state
 
@@ -60,11 +60,12 @@ def test_a_300_frame_shot_has_no_seams_and_curves_are_followed_within_a_centimet
     api.bind_curve(rig, bones["RWrist"], blender_rigs.curve(scene, "long path", path))
     job = pipeline.prepare(rig, 3, 0)
     pipeline.infer(job)
-    motion = job.motion  # (3, 300, 17, 3) world, scene rate
+    motion = job.result.motion  # (3, 300, 17, 3) world, scene rate
     speed = np.linalg.norm(np.diff(motion, axis=1), axis=-1).mean(axis=-1)  # (3, 299) mean joint step
     jump = np.abs(np.diff(speed, axis=1))  # change of speed from frame to frame
     window = inference.model().frames
-    joins_model = np.arange(window, len(job.trajectories), window - generation.WINDOW_OVERLAP)
+    model_frames = generation.model_frames(len(job.request.frames), job.request.fps)
+    joins_model = np.arange(window, model_frames, window - generation.WINDOW_OVERLAP)
     joins = np.round(joins_model * 24 / 30).astype(int)
     at_joins = jump[:, np.clip(joins - 1, 0, jump.shape[1] - 1)].mean()
     print(f"300 frames: speed change at joins {at_joins * 1000:.2f} mm/frame vs {jump.mean() * 1000:.2f} overall "
@@ -97,7 +98,7 @@ def test_cancelling_mid_run_writes_nothing(scene):
     worker.start()
     worker.join(timeout=120)
     assert outcome == ["cancelled"] and 0 < job.progress < 0.9
-    assert job.motion is None
+    assert job.result is None
     assert set(bpy.data.actions) == actions_before and not len(rig.trajevae.variants)
 
 
@@ -132,9 +133,10 @@ def test_grease_pencil_stroke_followed_at_its_drawing_speed(scene):
     times = np.concatenate([np.linspace(0.0, 1.5, 11), np.linspace(1.6, 2.0, 10)])  # slow, then fast
     stroke = _grease_pencil(scene, points, times)
     api.bind_curve(rig, "RWrist", stroke)
-    timed = pipeline.prepare(rig, 2, 0).curve_paths["RWrist"]
+    targets = lambda job: shot.model_input(job.request).targets["RWrist"]
+    timed = targets(pipeline.prepare(rig, 2, 0))
     api.bind_curve(rig, "RWrist", stroke, use_drawing_speed=False)
-    even = pipeline.prepare(rig, 2, 0).curve_paths["RWrist"]
+    even = targets(pipeline.prepare(rig, 2, 0))
     travelled = lambda path: np.linalg.norm(path[30] - start) / np.linalg.norm(points[-1] - start)
     assert abs(travelled(even) - 0.5) < 0.02
     assert abs(travelled(timed) - (1.0 / 2.0 * 2.0 / 1.5) * 0.5) < 0.05  # half the time, a third of the way
@@ -152,7 +154,7 @@ def test_follow_path_constraint_counts_as_a_binding_and_is_restored(scene):
     constraint = rig.pose.bones["LWrist"].constraints.new('FOLLOW_PATH')
     constraint.target = path
     job = pipeline.prepare(rig, 2, 0)
-    assert job.mask[:, JOINT_INDEX["LWrist"]].all()
+    assert shot.model_input(job.request).mask[:, JOINT_INDEX["LWrist"]].all()
     report = pipeline.finish(pipeline.infer(job) or job, rig)
     assert all(error < 0.01 for error in report.curve_error_m)
     scene.frame_set(10)

@@ -59,7 +59,7 @@ class TRAJEVAE_OT_generate(bpy.types.Operator):
     def _done(self, report):
         errors = ", ".join(f"{100 * e:.1f}" for e in report.curve_error_m)
         self.report({'INFO'}, f"{len(report.actions)} variants in {sum(report.seconds.values()):.2f} s"
-                              + (f"; curve error as played (cm): {errors}" if self._job.curve_paths else ""))
+                              + (f"; curve error as played (cm): {errors}" if self._job.request.curves else ""))
         for warning in report.warnings:
             self.report({'WARNING'}, warning)
         return {'FINISHED'}

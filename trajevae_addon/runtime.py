@@ -18,9 +18,8 @@ def _submodule(name):
 
 curve_geometry = _submodule("curve_geometry")
 skeleton = _submodule("skeleton")
-generation = _submodule("generation")
-retarget = _submodule("retarget")
-rotations = _submodule("rotations")
 numpy_model = _submodule("numpy_model")
+retarget = _submodule("retarget")
+shot = _submodule("shot")
 profiles = _submodule("data.profiles")
 ASSETS = Path(model_runtime.__file__).resolve().parents[1] / "assets"

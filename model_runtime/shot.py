@@ -1,0 +1,233 @@
+"""A shot without Blender: what the artist asked for in (a ``Request``), N variants out.
+
+``run`` takes these steps, each a named function:
+
+1. ``model_input``: the curves and keys as the model's known joints, at its
+   native 30 fps in its own frame (metres, floor at z = 0, see
+   ``generation.Placement``), and each curve's target on every scene frame;
+2. ``generation.generate``: the model's variants over the whole shot;
+3. ``cleanup.tidy``: at the scene's frame rate, the variants eased onto the
+   keys, put on the curves exactly, on the floor, planted feet held still;
+4. ``retarget``: joint positions to the rig's keys, one variant at a time.
+
+Coordinates are converted once each way: world (scene units, Z up) to the
+model's frame on the way in, back to world on the way out, then into the
+armature's space with each frame's inverse world matrix (a rig carried by a
+moving parent follows its curves in world space).
+"""
+
+import math
+import numbers
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import cleanup, generation, retarget
+from .skeleton import JOINT_INDEX, NUM_JOINTS
+
+J = JOINT_INDEX
+
+MAX_VARIANTS = 50
+MAX_DIVERSITY = 2.0
+# Drawn input a body cannot follow, refused before generating: a joint's mean speed along its curve
+# (captured hands and feet peak near 20 m/s for a moment, a sprinter's body holds about 10 m/s), the
+# jump from the joint to its curve's first point, and how far a curve dips below the rig's feet.
+MAX_MEAN_SPEED_M_S = 12.0
+MAX_START_GAP_M = 1.0
+MAX_BELOW_FEET_M = 0.2
+# Frames compared for the distance between variants.
+COMPARED_FRAMES = 300
+# Share of ``run``'s progress spent in the networks; the retarget takes the rest.
+INFERENCE_SHARE = 0.75
+
+
+class InputError(ValueError):
+    """An argument or a drawn input a shot cannot use; the message says what to change."""
+
+
+@dataclass
+class Request:
+    """One generation, read from the scene.
+
+    rig: the rig at the start frame in armature space (``retarget.RigState``);
+    rotation_modes: keyed bone -> its rotation mode; root_bone: the bone keyed with location;
+    frames (F,) scene frames at ``fps``; armature_to_world (F, 4, 4), or (1, 4, 4) for a rig
+    that stays put; start_joints (17, 3) and floor (the world height the feet stand on) in world
+    units, ``metres_per_unit`` of them to the metre; curves: joint -> (points (P, 3) world, drawing
+    times (P,) in seconds or None for uniform speed); curve_names: joint -> the curve's name;
+    keys: scene frame -> {joint: (3,) world position}.
+    """
+
+    count: int
+    seed: int
+    diversity: float
+    rig: retarget.RigState
+    rotation_modes: dict
+    root_bone: str
+    frames: np.ndarray
+    fps: float
+    armature_to_world: np.ndarray
+    start_joints: np.ndarray
+    floor: float
+    metres_per_unit: float
+    curves: dict = field(default_factory=dict)
+    curve_names: dict = field(default_factory=dict)
+    keys: dict = field(default_factory=dict)
+
+
+@dataclass
+class ModelInput:
+    """A request as the model sees it: ``placement`` (world <-> model frame), initial (17, 3),
+    trajectories (T, 17, 3) and mask (T, 17) of the known joints on the model frames after the
+    initial one; targets: joint -> (F, 3) world position its curve asks for on each scene frame;
+    keyed: scene frame index -> {joint: (3,) model-frame position}."""
+
+    placement: generation.Placement
+    initial: np.ndarray
+    trajectories: np.ndarray
+    mask: np.ndarray
+    targets: dict
+    keyed: dict
+
+
+@dataclass
+class Result:
+    """A shot's variants: motion (count, F, 17, 3) world at the scene's frames; contacts
+    (count, F, 2) planted right and left feet; targets: joint -> (F, 3) world position its curve
+    asks for on each scene frame; channels, per variant ``retarget.key_channels``;
+    shortfall, per variant {joint: (F,) world distance its curve lies beyond the limb's reach};
+    difference, per variant the mean joint distance to the nearest other variant (world)."""
+
+    motion: np.ndarray
+    contacts: np.ndarray
+    targets: dict
+    channels: list
+    shortfall: list
+    difference: list
+
+
+def check_arguments(count, seed, diversity):
+    """InputError with a sentence for a variant count, seed or diversity a shot cannot take."""
+    def whole(value):
+        return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+    if not whole(count) or not 1 <= count <= MAX_VARIANTS:
+        raise InputError(f"the number of variants must be a whole number from 1 to {MAX_VARIANTS}, not {count!r}")
+    if not whole(seed) or not 0 <= seed < 2 ** 63:
+        raise InputError(f"the seed must be a whole number of 0 or more, not {seed!r}")
+    if (not isinstance(diversity, numbers.Real) or isinstance(diversity, bool) or not math.isfinite(diversity)
+            or not 0.0 <= diversity <= MAX_DIVERSITY):
+        raise InputError(f"diversity must be a number from 0 to {MAX_DIVERSITY:g}, not {diversity!r}")
+
+
+def model_input(request):
+    """The request's curves and keys as the model's input (a ModelInput)."""
+    frames, fps = request.frames, request.fps
+    placement = generation.Placement.for_pose(request.start_joints, request.floor, request.metres_per_unit)
+    steps = generation.model_frames(len(frames), fps)
+    span = (len(frames) - 1) * generation.NATIVE_FPS / fps  # model frames to the shot's last frame
+    trajectories = np.zeros((steps, NUM_JOINTS, 3), np.float32)
+    mask = np.zeros((steps, NUM_JOINTS), np.float32)
+    keyed = {}
+    for frame, joints in request.keys.items():  # keys constrain their joints on their frames only
+        index = int(frame - frames[0])
+        keyed[index] = {joint: placement.to_model(position) for joint, position in joints.items()}
+        model_time = index * generation.NATIVE_FPS / fps
+        for step in {int(np.floor(model_time)), int(np.ceil(model_time))} - {0}:  # both sides of the key
+            for joint, position in keyed[index].items():
+                trajectories[step - 1, J[joint]], mask[step - 1, J[joint]] = position, 1.0
+    targets = {}
+    for joint, (points, times) in request.curves.items():
+        trajectories[:, J[joint]] = placement.to_model(generation.curve_samples(points, steps, span, times)[1:])
+        mask[:, J[joint]] = 1.0
+        targets[joint] = generation.curve_samples(points, len(frames) - 1, len(frames) - 1, times)
+    return ModelInput(placement, placement.to_model(request.start_joints), trajectories, mask, targets, keyed)
+
+
+def check_reach(request, given):
+    """InputError naming each curve a body cannot follow, and by how much. Limits hold for the
+    body as the model sees it (rigs outside the trained size are scaled to it) and are said in
+    scene metres."""
+    to_body = given.placement.scale / request.metres_per_unit  # scene metres -> the model's metres
+    feet = min(request.start_joints[J["LFoot"]][2], request.start_joints[J["RFoot"]][2])
+    seconds = (len(request.frames) - 1) / request.fps
+    problems = []
+    for joint, path in given.targets.items():
+        name = f"curve {request.curve_names[joint]!r} ({request.rig.bones[joint]})"
+        gap = np.linalg.norm(path[0] - request.start_joints[J[joint]]) * request.metres_per_unit
+        if gap * to_body > MAX_START_GAP_M:
+            problems.append(f"{name} starts {gap:.2f} m from its joint, which can jump at most "
+                            f"{MAX_START_GAP_M / to_body:.2g} m onto it; draw it from the joint")
+        length = np.linalg.norm(np.diff(path, axis=0), axis=-1).sum() * request.metres_per_unit
+        if length / seconds * to_body > MAX_MEAN_SPEED_M_S:
+            problems.append(f"{name} is {length:.1f} m long, {length / seconds:.3g} m/s over the {seconds:.1f} s "
+                            f"frame range where this body manages about {MAX_MEAN_SPEED_M_S / to_body:.3g} m/s; "
+                            "shorten it or lengthen the range")
+        below = (feet - path[:, 2].min()) * request.metres_per_unit
+        if below * to_body > MAX_BELOW_FEET_M:
+            problems.append(f"{name} goes {below:.2f} m below the feet, through the floor")
+    if problems:
+        raise InputError("out of reach: " + "; ".join(problems))
+
+
+def to_armature(armature_to_world, points):
+    """World points (F, ..., 3) in armature space, each frame by the inverse of its matrix
+    (armature_to_world (F or 1, 4, 4))."""
+    inverse = np.linalg.inv(armature_to_world)
+    rotation = inverse[:, :3, :3].reshape(-1, *([1] * (points.ndim - 2)), 3, 3)
+    offset = inverse[:, :3, 3].reshape(-1, *([1] * (points.ndim - 2)), 3)
+    return (rotation @ points[..., None])[..., 0] + offset
+
+
+def run(request, model, sampler=None, progress=None):
+    """The request's variants (a Result). ``sampler``: the diverse sampler, used where nothing is
+    given; ``progress(fraction)`` is called as the work goes on and may raise to stop it."""
+    report = progress or (lambda fraction: None)
+    given = model_input(request)
+    check_reach(request, given)
+    motion = generation.generate(model, given.initial, given.trajectories, given.mask, request.count,
+                                 np.random.default_rng(request.seed), request.diversity,
+                                 None if given.mask.any() else sampler,
+                                 progress=lambda fraction: report(INFERENCE_SHARE * fraction))
+    frames = len(request.frames)
+    scene_rate = np.empty((request.count, frames, NUM_JOINTS, 3))
+    for index in range(request.count):  # one variant at a time: resampling makes copies
+        scene_rate[index] = generation.to_scene_rate(motion[index].astype(np.float64), frames, request.fps)
+    del motion
+    targets = {joint: given.placement.to_model(path).astype(np.float64) for joint, path in given.targets.items()}
+    scene_rate, contacts = cleanup.tidy(scene_rate, request.fps, given.initial, targets, given.keyed)
+    world = given.placement.to_world(scene_rate)
+    del scene_rate
+    if not np.isfinite(world).all():
+        raise InputError("the model returned motion that is not a number for this input; nothing was written")
+    pinned = np.zeros((frames, NUM_JOINTS))  # joints the artist fixed on each frame
+    for joint in given.targets:
+        pinned[:, J[joint]] = 1.0
+    for index, joints in given.keyed.items():
+        pinned[index, [J[joint] for joint in joints]] = 1.0
+    world_scale = np.abs(np.linalg.det(request.armature_to_world[:, :3, :3])) ** (1.0 / 3.0)  # (F or 1,)
+    channels, shortfall = [], []
+    for index in range(request.count):
+        targets_here = to_armature(request.armature_to_world, world[index])
+        deltas = retarget.joint_deltas(request.rig, targets_here, pinned)
+        keys = retarget.key_channels(retarget.bone_bases(request.rig, deltas), request.rotation_modes,
+                                     request.root_bone)
+        if not all(np.isfinite(values).all() for _, _, values in keys):
+            raise InputError("the retarget returned keys that are not a number for this rig; nothing was written")
+        channels.append(keys)
+        achieved = retarget.achieved_joints(request.rig, deltas)
+        shortfall.append({joint: world_scale * retarget.reach_shortfall(
+            request.rig, achieved, to_armature(request.armature_to_world, path), joint)
+            for joint, path in given.targets.items()})
+        report(INFERENCE_SHARE + (1.0 - INFERENCE_SHARE) * (index + 1) / request.count)
+    return Result(world, contacts, given.targets, channels, shortfall, _nearest_other(world))
+
+
+def _nearest_other(motion):
+    """Per variant of motion (V, F, J, 3), the mean joint distance to the nearest other variant,
+    on at most COMPARED_FRAMES frames; 0 for a single variant."""
+    frames = motion.shape[1]
+    compared = motion[:, np.unique(np.linspace(0, frames - 1, min(frames, COMPARED_FRAMES)).astype(int))]
+    return [min((float(np.linalg.norm(compared[index] - compared[other], axis=-1).mean())
+                 for other in range(len(motion)) if other != index), default=0.0)
+            for index in range(len(motion))]
