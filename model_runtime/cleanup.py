@@ -1,11 +1,251 @@
 """What turns the model's variants into animation an animator keeps, at the scene's frame rate in
-the model's frame (metres, Z up, floor at z = 0). Motions are (V, F, 17, 3)."""
+the model's frame (metres, Z up, the floor at z = 0 where the rig's toes stood at the start).
+
+``tidy`` runs the steps in order: the start eased out of the rig's pose
+(``ease_out_of_start``), the body put back on the floor (``on_floor``), carried against its planted feet's slide (``without_slide``),
+planted feet held still with their heading (``plant_feet``), eased onto the
+artist's keys (``ease_onto_keys``), and every curve and key met exactly
+(``pin``). Motions are (V, F, 17, 3).
+"""
 
 import numpy as np
 
+from .filters import smooth, smoothstep, window_min
 from .skeleton import JOINT_INDEX
 
 J = JOINT_INDEX
+FEET = ("RFoot", "LFoot")
+# The ground under the body: the lower ankle's lowest height over this many seconds either side, so
+# flights shorter than twice this (jumps) keep their height while slow drift up or down is removed.
+FLOOR_WINDOW_S = 0.5
+# An ankle within this height of where it stood at the start is planted: a foot that moves along
+# the floor without lifting is sliding, which an animator never wants.
+CONTACT_HEIGHT_M = 0.04
+# The start of a shot eases out of the rig's pose over this many seconds.
+START_EASE_S = 0.25
+# Around a key, the model's own motion of the keyed joints is replaced by a smooth bridge over this
+# many seconds either side (it jumps onto the key at the last moment).
+KEY_BRIDGE_S = 0.25
+# Plants shorter than this are not held; a foot that lifts less than STEP_LIFT_M between two plants
+# shuffled along the floor and is held through.
+MIN_CONTACT_S = 0.1
+STEP_LIFT_M = 0.06
+
+
+def on_floor(motion, fps, standing):
+    """The body moved up or down, smoothly, so the lower ankle stands at ``standing`` (its height
+    at the start) wherever the feet touch the ground: no sinking below the floor, no floating
+    away over a long shot, flights shorter than 2 FLOOR_WINDOW_S kept."""
+    lower = motion[..., [J[foot] for foot in FEET], 2].min(-1) - standing  # (V, F)
+    half = max(1, int(round(FLOOR_WINDOW_S * fps)))
+    ground = np.minimum(smooth(window_min(lower, half), half / 3.0), lower)
+    out = motion.copy()
+    out[..., 2] -= ground[..., None]
+    return out
+
+
+def _bridge(values, start, end, still_start=False):
+    """values (V, F, ...) over frames start..end replaced by a cubic Hermite bridge between its
+    positions and velocities at the two ends (none at the start where ``still_start``), in place."""
+    velocity = lambda at: 0.5 * (values[:, min(at + 1, values.shape[1] - 1)] - values[:, max(at - 1, 0)])
+    span = end - start
+    t = ((np.arange(start, end + 1) - start) / span).reshape(1, -1, *([1] * (values.ndim - 2)))
+    p0, p1 = values[:, start, None], values[:, end, None]
+    m0 = 0.0 if still_start else velocity(start)[:, None]
+    m1 = velocity(end)[:, None]
+    values[:, start:end + 1] = ((2 * t ** 3 - 3 * t ** 2 + 1) * p0 + (t ** 3 - 2 * t ** 2 + t) * span * m0
+                                + (-2 * t ** 3 + 3 * t ** 2) * p1 + (t ** 3 - t ** 2) * span * m1)
+
+
+def ease_out_of_start(motion, fps):
+    """The first START_EASE_S replaced by a bridge from the rig's still pose into the model's
+    motion: the model's first frame jumps away from the pose it was given."""
+    out = motion.copy()
+    end = min(int(round(START_EASE_S * fps)), motion.shape[1] - 1)
+    if end > 1:
+        _bridge(out, 0, end, still_start=True)
+    return out
+
+
+def ease_onto_keys(motion, keyed, fps):
+    """Motion brought onto the keys ({frame index: {joint: (3,)}}) as an additive layer would. The
+    model jumps onto a key in the last frame or two before it, so each keyed joint's motion is
+    first bridged over KEY_BRIDGE_S either side of its keys; then its offset from each key, zero
+    at the first frame (the rig's own pose), is eased (smoothstep) from key to key and held after
+    the last, so nothing snaps on a key."""
+    out = motion.copy()
+    frames = np.arange(motion.shape[1])
+    half = max(1, int(round(KEY_BRIDGE_S * fps)))
+    joints = sorted({joint for keys in keyed.values() for joint in keys})
+    for joint in joints:
+        for index in sorted(index for index, keys in keyed.items() if joint in keys):
+            start, end = max(index - half, 0), min(index + half, len(frames) - 1)
+            if end - start > 1:
+                track = out[:, :, J[joint]]
+                _bridge(track, start, end)
+                out[:, :, J[joint]] = track
+        times = [0] + sorted(index for index, keys in keyed.items() if joint in keys)
+        offsets = [np.zeros((len(motion), 3))] + [keyed[index][joint] - out[:, index, J[joint]]
+                                                  for index in times[1:]]
+        layer = np.repeat(offsets[-1][:, None], len(frames), axis=1)  # held after the last key
+        for (start, before), (end, after) in zip(zip(times, offsets), zip(times[1:], offsets[1:])):
+            span = slice(start, end + 1)
+            ease = smoothstep((frames[span] - start) / max(end - start, 1))[None, :, None]
+            layer[:, span] = before[:, None] + (after - before)[:, None] * ease
+        out[:, :, J[joint]] += layer
+    return out
+
+
+def _runs(flags):
+    """(start, end) frame pairs, end inclusive, of the True runs in flags (F,)."""
+    edges = np.diff(np.concatenate([[0], flags.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1))
+
+
+def _contacts(ankle, fps, standing, free):
+    """Planted frames (F,) of one ankle (F, 3): low, on frames where it is ``free`` (F,) of keys
+    and curves; gaps of a frame or two and shuffles closed, plants under MIN_CONTACT_S dropped."""
+    height = ankle[:, 2] - standing
+    planted = (height < CONTACT_HEIGHT_M) & free
+    for start, end in _runs(~planted):
+        between = 0 < start and end < len(planted) - 1 and free[start:end + 1].all()
+        if between and (end - start < 2 or height[start:end + 1].max() < STEP_LIFT_M):
+            planted[start:end + 1] = True
+    for start, end in _runs(planted):
+        if (end - start + 1) / fps < MIN_CONTACT_S:
+            planted[start:end + 1] = False
+    return planted
+
+
+def heading(motion):
+    """The pelvis's turn about Z since the first frame (V, F), radians, continuous."""
+    across = motion[..., J["LHip"], :2] - motion[..., J["RHip"], :2]
+    angle = np.unwrap(np.arctan2(across[..., 1], across[..., 0]), axis=-1)
+    return angle - angle[..., :1]
+
+
+def _contact_flags(motion, fps, standing, pinned):
+    """Planted frames (V, F, 2) of the right and left ankles (see ``_contacts``)."""
+    flags = np.zeros(motion.shape[:2] + (2,), dtype=bool)
+    for variant in range(len(motion)):
+        for side, foot in enumerate(FEET):
+            flags[variant, :, side] = _contacts(motion[variant, :, J[foot]], fps, standing, pinned[:, J[foot]] == 0)
+    return flags
+
+
+LIMBS = (("RShoulder", "RElbow", "RWrist"), ("LShoulder", "LElbow", "LWrist"),
+         ("RHip", "RKnee", "RFoot"), ("LHip", "LKnee", "LFoot"))
+# Share of a limb's length the body keeps its pinned hands and feet within (of the generated
+# shoulder or hip) while it stops sliding: the rig's own shoulder lands up to a fifth of an arm away.
+REACH_SHARE = 0.8
+REACH_EASE_S = 0.2
+# A planted foot left this many legs behind its hip (horizontally) steps: it lifts STEP_CLEARANCE_M
+# for STEP_S and plants again where the body has taken it.
+STEP_TRIGGER = 0.4
+STEP_S = 0.3
+STEP_CLEARANCE_M = 0.08
+
+
+def _limb_length(initial, limb):
+    return sum(np.linalg.norm(initial[J[b]] - initial[J[a]]) for a, b in zip(limb, limb[1:]))
+
+
+def without_slide(motion, fps, standing, pinned, initial, targets):
+    """The whole body moved against the slide of its planted feet: while a foot is planted, its
+    horizontal drift is the body's, taken out frame by frame (where the hips are not pinned), as
+    far as the hands and feet on curves ({joint: (F, 3)}) stay within reach of the body; what
+    brings them back within reach is eased over REACH_EASE_S."""
+    planted = _contact_flags(motion, fps, standing, pinned)  # (V, F, 2)
+    velocity = np.diff(motion[..., [J[foot] for foot in FEET], :2], axis=1)  # (V, F - 1, 2, 2)
+    both = planted[:, 1:] & planted[:, :-1]
+    slide = (velocity * both[..., None]).sum(-2) / np.maximum(both.sum(-1), 1)[..., None]  # (V, F - 1, 2)
+    slide *= (1.0 - pinned[1:, J["Hip"]])[None, :, None]
+    shift = np.concatenate([np.zeros((len(motion), 1, 2)), -np.cumsum(slide, axis=1)], axis=1)  # (V, F, 2)
+    back = np.zeros_like(shift)
+    for limb in LIMBS:
+        if limb[-1] not in targets:
+            continue
+        root, end = motion[:, :, J[limb[0]]], targets[limb[-1]]
+        across = np.sqrt(np.maximum((REACH_SHARE * _limb_length(initial, limb)) ** 2 - (end[:, 2] - root[..., 2]) ** 2,
+                                    0.0))
+        gap = end[:, :2] - root[..., :2] - shift - back
+        distance = np.linalg.norm(gap, axis=-1)
+        back += gap * np.clip(1.0 - across / np.maximum(distance, 1e-9), 0.0, None)[..., None]
+    out = motion.copy()
+    out[..., :2] += (shift + np.swapaxes(smooth(np.swapaxes(back, 1, 2), REACH_EASE_S * fps), 1, 2))[:, :, None]
+    return out
+
+
+def _layer(frames, runs, inside):
+    """An additive correction (F, ...) that is ``inside(start, end)`` (its values over the run)
+    within each run (start, end) and eases (smoothstep) from one run's last value to the next
+    run's first in between; 0 at the first frame, the last run's last value held after it."""
+    values = inside(0, 0)[:1] * 0.0
+    layer = np.repeat(values, len(frames), axis=0)
+    before_frame, before_value = 0, values[0]
+    for start, end in runs:
+        inner = inside(start, end)
+        if start > before_frame:
+            span = slice(before_frame, start + 1)
+            ease = smoothstep((frames[span] - before_frame) / (start - before_frame))
+            ease = ease.reshape(-1, *([1] * (inner.ndim - 1)))
+            layer[span] = before_value + (inner[0] - before_value) * ease
+        layer[start:end + 1] = inner
+        before_frame, before_value = end, inner[-1]
+    layer[before_frame:] = before_value
+    return layer
+
+
+def _steps_when_left_behind(planted, ankle, hip, leg, fps):
+    """Planted frames (F,) of an ankle (F, 3) with a step cut in wherever its hip (F, 3) has moved
+    more than STEP_TRIGGER legs away from where the foot was planted (the body carried off by a
+    curve, say): the foot lifts for STEP_S and plants again under the body."""
+    planted = planted.copy()
+    swing = max(2, int(round(STEP_S * fps)))
+    for start, end in _runs(planted):
+        reach = np.linalg.norm(hip[start:end + 1, :2] - ankle[start, :2], axis=-1)
+        far = np.flatnonzero(reach > STEP_TRIGGER * leg)
+        if len(far):
+            planted[start + far[0]:start + far[0] + swing] = False
+            return _steps_when_left_behind(planted, ankle, hip, leg, fps)
+    return planted
+
+
+def _lift(frames, runs, height):
+    """A foot's added height (F,): an arc STEP_CLEARANCE_M high over each step between runs where
+    the foot (its own ``height`` (F,) over where it stands) does not lift by STEP_LIFT_M."""
+    lift = np.zeros(len(frames))
+    for (_, before), (after, _) in zip(runs, runs[1:]):
+        if after - before > 1 and height[before:after + 1].max() < STEP_LIFT_M:
+            phase = (frames[before:after + 1] - before) / (after - before)
+            lift[before:after + 1] = STEP_CLEARANCE_M * np.sin(np.pi * phase)
+    return lift
+
+
+def plant_feet(motion, fps, standing, pinned, initial):
+    """(motion, contacts (V, F, 2), foot turns (V, F, 2)), right foot first: each planted ankle
+    held where it landed, on the floor, with its foot's turn about Z as it landed. The hold is an
+    additive layer on the foot, eased from plant to plant through the step between, so no pop
+    appears where a plant starts or ends. ``pinned`` (F, 17): joints the artist fixed on each
+    frame, which are never planted; ``initial`` (17, 3) gives the legs' lengths."""
+    out = motion.copy()
+    pelvis = heading(motion)
+    turns = np.repeat(pelvis[..., None], 2, axis=-1)
+    contacts = _contact_flags(motion, fps, standing, pinned)
+    frames = np.arange(motion.shape[1])
+    for variant in range(len(motion)):
+        for side, foot in enumerate(FEET):
+            ankle, turn = motion[variant, :, J[foot]], pelvis[variant]
+            leg = LIMBS[2 + side]
+            contacts[variant, :, side] = _steps_when_left_behind(contacts[variant, :, side], ankle,
+                                                                 motion[variant, :, J[leg[0]]],
+                                                                 _limb_length(initial, leg), fps)
+            runs = _runs(contacts[variant, :, side])
+            held = lambda start, end: np.array([ankle[start, 0], ankle[start, 1], standing]) - ankle[start:end + 1]
+            out[variant, :, J[foot]] += _layer(frames, runs, held)
+            out[variant, :, J[foot], 2] += _lift(frames, runs, ankle[:, 2] - standing)
+            turns[variant, :, side] += _layer(frames, runs, lambda start, end: turn[start] - turn[start:end + 1])
+    return out, contacts, turns
 
 
 def pin(motion, targets, keyed):
@@ -19,7 +259,23 @@ def pin(motion, targets, keyed):
     return motion
 
 
+def pinned_joints(frames, targets, keyed):
+    """(frames, 17): 1 where the artist fixed a joint on a frame (a curve's joint, a keyed joint)."""
+    pinned = np.zeros((frames, len(J)))
+    for joint in targets:
+        pinned[:, J[joint]] = 1.0
+    for index, joints in keyed.items():
+        pinned[index, [J[joint] for joint in joints]] = 1.0
+    return pinned
+
+
 def tidy(motion, fps, initial, targets, keyed):
-    """(motion, contacts (V, F, 2) of the right and left feet): the variants on their curves and
-    keys."""
-    return pin(motion, targets, keyed), np.zeros(motion.shape[:2] + (2,), dtype=bool)
+    """(motion, contacts (V, F, 2), foot turns (V, F, 2)) of the variants (V, F, 17, 3) at ``fps``
+    from the pose ``initial`` (17, 3): on the floor, eased onto the keys, planted feet still,
+    every curve ({joint: (F, 3)}) and key ({frame index: {joint: (3,)}}) met exactly."""
+    standing = min(initial[J[foot], 2] for foot in FEET)
+    on_curves = pinned_joints(motion.shape[1], targets, {})  # keys ease in after the feet are planted
+    motion = on_floor(ease_out_of_start(motion, fps), fps, standing)
+    motion = without_slide(motion, fps, standing, on_curves, initial, targets)
+    motion, contacts, turns = plant_feet(motion, fps, standing, on_curves, initial)
+    return pin(ease_onto_keys(motion, keyed, fps), targets, keyed), contacts, turns

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import rotations
+from .filters import smooth
 from .skeleton import JOINT_INDEX
 
 J = JOINT_INDEX
@@ -31,6 +32,14 @@ LIMBS = (("RHip", "RKnee", "RFoot"), ("LHip", "LKnee", "LFoot"),
          ("RShoulder", "RElbow", "RWrist"), ("LShoulder", "LElbow", "LWrist"))
 # Share of a limb's length it is stretched to at most: fully straight limbs flip their bend.
 REACH_MARGIN = 0.999
+# Generated hips or shoulders narrower than this share of the rig's are not trusted for direction;
+# directions are smoothed over this many frames (sigma).
+ACROSS_TRUST = 0.6
+ACROSS_SMOOTHING = 1.5
+# How far (degrees) a knee or elbow may point away from the way its hinge bends it, and the bend (in
+# upper-limb lengths) at which the generated direction counts half.
+MAX_BEND_TURN = {"leg": 30.0, "arm": 90.0}
+POLE_PRIOR = 0.2
 REQUIRED_JOINTS = ("Hip",) + tuple(joint for limb in LIMBS for joint in limb) + ("Thorax", "Neck")
 
 
@@ -112,12 +121,14 @@ def _bend_weight(upper, lower):
     return np.clip((bend - 5.0) / 20.0, 0.0, 1.0)
 
 
-def joint_deltas(rig, targets, pinned=None):
+def joint_deltas(rig, targets, pinned=None, foot_turns=None):
     """World deltas joint -> (F, 4, 4) for every mapped joint, from targets (F, 17, 3).
 
     ``pinned`` (F, 17), optional: joints the artist fixed on each frame; a
     pinned pelvis is never moved to let the feet reach, and the chest leans
-    toward pinned hands beyond the arms' reach.
+    toward pinned hands beyond the arms' reach. ``foot_turns`` (F, 2),
+    optional: each foot's turn about Z since the start (right, left; a planted
+    foot keeps its own), else the pelvis's.
     """
     start, frames = rig.joints, len(targets)
     deltas = {}
@@ -132,12 +143,13 @@ def joint_deltas(rig, targets, pinned=None):
 
     across = lambda pose, l, r: pose[..., J[l], :] - pose[..., J[r], :]
     up = lambda pose: pose[..., J["Thorax"], :] - pose[..., J["Hip"], :]
-    pelvis = frame(across(targets, "LHip", "RHip"), up(targets)) @ frame(  # the hips exactly, then the lean
+    hips, shoulders = _steady_across(start, targets)
+    pelvis = frame(hips, up(targets)) @ frame(  # the hips exactly, then the lean
         across(start, "LHip", "RHip"), up(start)).T
     free = np.ones(len(targets)) if pinned is None else 1.0 - pinned[:, J["Hip"]]
     deltas["Hip"] = _reach_feet(rig, targets, _rigid(pelvis, start[J["Hip"]], targets[:, J["Hip"]]), free)
     if "Spine" in rig.bones:
-        chest = frame(up(targets), across(targets, "LShoulder", "RShoulder")) @ frame(
+        chest = frame(up(targets), shoulders) @ frame(
             up(start), across(start, "LShoulder", "RShoulder")).T
         deltas["Spine"] = _rigid(chest, head("Spine"), _apply(carried("Spine"), head("Spine")))
         if pinned is not None:
@@ -149,9 +161,30 @@ def joint_deltas(rig, targets, pinned=None):
         rotation = swing(rotation @ (start[J[child]] - start[J[joint]]), targets[:, J[child]] - pivot) @ rotation
         deltas[joint] = _rigid(rotation, start[J[joint]], pivot)
     heading = np.arctan2(pelvis[:, 1, 0], pelvis[:, 0, 0])  # turn of the pelvis about Z
+    turns = {"RFoot": heading, "LFoot": heading} if foot_turns is None else {
+        "RFoot": foot_turns[:, 0], "LFoot": foot_turns[:, 1]}
     for upper, lower, end in LIMBS:
-        deltas.update(_limb(rig, targets, carried(upper), upper, lower, end, heading))
+        deltas.update(_limb(rig, targets, carried(upper), upper, lower, end, turns.get(end)))
     return deltas
+
+
+def _steady_across(start, targets):
+    """(hips, shoulders) left-right directions (F, 3) of targets (F, 17, 3). Where generated hips
+    (or shoulders) lie closer together than ACROSS_TRUST of the rig's width their direction is
+    noise that spun the pelvis by over 100 degrees in a frame, so the other pair's direction takes
+    over in proportion, and where both are narrow, the neighbouring frames' (ACROSS_SMOOTHING)."""
+    def pair(pose, left, right):
+        return pose[..., J[left], :] - pose[..., J[right], :]
+
+    weighted = []
+    for left, right in (("LHip", "RHip"), ("LShoulder", "RShoulder")):
+        vector = pair(targets, left, right)
+        trust = np.clip(np.linalg.norm(vector, axis=-1) / (ACROSS_TRUST * np.linalg.norm(pair(start, left, right))),
+                        0.0, 1.0)
+        weighted.append((_unit(vector) * trust[:, None], trust[:, None]))
+    (hips, hip_trust), (shoulders, shoulder_trust) = weighted
+    steady = lambda v: _unit(np.swapaxes(smooth(np.swapaxes(v, 0, 1), ACROSS_SMOOTHING), 0, 1))
+    return steady(hips + (1.0 - hip_trust) * shoulders), steady(shoulders + (1.0 - shoulder_trust) * hips)
 
 
 def _axis_angle_matrix(axis, angle):
@@ -204,29 +237,38 @@ def _reach_feet(rig, targets, pelvis, free, rounds=4):
 
 
 def _limb(rig, targets, parent, upper, lower, end, heading):
-    """Deltas of a limb's three joints: a two-bone solve toward the end target."""
+    """Deltas of a limb's three joints: a two-bone solve toward the end target; a foot keeps its
+    initial orientation turned by ``heading`` (F,) about Z (None for a hand)."""
     start = rig.joints
     root = _apply(parent, start[J[upper]])
     first, second = (np.linalg.norm(start[J[b]] - start[J[a]]) for a, b in ((upper, lower), (lower, end)))
     to_end = targets[:, J[end]] - root
     reach = np.clip(np.linalg.norm(to_end, axis=-1), abs(first - second) + 1e-6, first + second - 1e-6)
     along = _unit(to_end)
-    carried_bend = parent[:, :3, :3] @ (start[J[lower]] - 0.5 * (start[J[upper]] + start[J[end]]))
-    pole = targets[:, J[lower]] - root
-    pole = pole - np.sum(pole * along, axis=-1, keepdims=True) * along
-    weak = np.linalg.norm(pole, axis=-1) < 1e-3 * first
-    pole = _unit(np.where(weak[:, None], carried_bend - np.sum(carried_bend * along, -1, keepdims=True) * along,
-                          pole))
+    initial_upper = start[J[lower]] - start[J[upper]]
+    initial_hinge = np.cross(initial_upper, start[J[end]] - start[J[lower]])
+    if np.linalg.norm(initial_hinge) < 0.05 * first * second:  # straight at the start
+        initial_hinge = _straight_hinge(rig, upper)
+    # Bend toward the generated middle joint, turned about the limb at most MAX_BEND_TURN from the
+    # way the limb bends about its own hinge (carried by its parent: knees forward), and less as
+    # the generated limb straightens (its bend direction becomes noise) or bends backwards (a
+    # hinge cannot), so the bend never flips from one side to the other.
+    own_bend = _unit(np.cross(along, parent[:, :3, :3] @ initial_hinge))
+    side = np.cross(along, own_bend)
+    generated = targets[:, J[lower]] - root
+    bend_x, bend_y = np.sum(generated * own_bend, axis=-1), np.sum(generated * side, axis=-1)
+    size = np.hypot(bend_x, bend_y)
+    limit = np.radians(MAX_BEND_TURN["leg" if end.endswith("Foot") else "arm"])
+    angle = np.arctan2(bend_y, bend_x)
+    behind = np.clip((np.pi - np.abs(angle)) / (0.5 * np.pi), 0.0, 1.0)  # a bend generated backwards counts less
+    turn = np.clip(angle, -limit, limit) * behind * size / (size + POLE_PRIOR * first)
+    pole = np.cos(turn)[:, None] * own_bend + np.sin(turn)[:, None] * side
     cos = (first ** 2 + reach ** 2 - second ** 2) / (2.0 * first * reach)
     middle = root + first * (cos[:, None] * along + np.sqrt(np.clip(1.0 - cos ** 2, 0.0, 1.0))[:, None] * pole)
     goal = root + along * reach[:, None]
 
     rotation = parent[:, :3, :3]
-    initial_upper = start[J[lower]] - start[J[upper]]
     rotation = swing(rotation @ initial_upper, middle - root) @ rotation
-    initial_hinge = np.cross(initial_upper, start[J[end]] - start[J[lower]])
-    if np.linalg.norm(initial_hinge) < 0.05 * first * second:  # straight at the start
-        initial_hinge = _straight_hinge(rig, upper)
     rotation = _twist_to(rotation, middle - root, rotation @ initial_hinge, np.cross(middle - root, goal - middle),
                          _bend_weight(middle - root, goal - middle))
     upper_delta = _rigid(rotation, start[J[upper]], root)

@@ -6,8 +6,8 @@
    native 30 fps in its own frame (metres, floor at z = 0, see
    ``generation.Placement``), and each curve's target on every scene frame;
 2. ``generation.generate``: the model's variants over the whole shot;
-3. ``cleanup.tidy``: at the scene's frame rate, the variants eased onto the
-   keys, put on the curves exactly, on the floor, planted feet held still;
+3. ``cleanup.tidy``: at the scene's frame rate, the variants put on the
+   floor, eased onto the keys, planted feet held still, curves and keys met;
 4. ``retarget``: joint positions to the rig's keys, one variant at a time.
 
 Coordinates are converted once each way: world (scene units, Z up) to the
@@ -195,21 +195,18 @@ def run(request, model, sampler=None, progress=None):
         scene_rate[index] = generation.to_scene_rate(motion[index].astype(np.float64), frames, request.fps)
     del motion
     targets = {joint: given.placement.to_model(path).astype(np.float64) for joint, path in given.targets.items()}
-    scene_rate, contacts = cleanup.tidy(scene_rate, request.fps, given.initial, targets, given.keyed)
+    scene_rate, contacts, turns = cleanup.tidy(scene_rate, request.fps, given.initial, targets, given.keyed)
     world = given.placement.to_world(scene_rate)
     del scene_rate
     if not np.isfinite(world).all():
         raise InputError("the model returned motion that is not a number for this input; nothing was written")
-    pinned = np.zeros((frames, NUM_JOINTS))  # joints the artist fixed on each frame
-    for joint in given.targets:
-        pinned[:, J[joint]] = 1.0
-    for index, joints in given.keyed.items():
-        pinned[index, [J[joint] for joint in joints]] = 1.0
+    pinned = cleanup.pinned_joints(frames, given.targets, given.keyed)
+    turns = turns - _yaw(request.armature_to_world)[None, :, None]  # the feet's turns in armature space
     world_scale = np.abs(np.linalg.det(request.armature_to_world[:, :3, :3])) ** (1.0 / 3.0)  # (F or 1,)
     channels, shortfall = [], []
     for index in range(request.count):
         targets_here = to_armature(request.armature_to_world, world[index])
-        deltas = retarget.joint_deltas(request.rig, targets_here, pinned)
+        deltas = retarget.joint_deltas(request.rig, targets_here, pinned, turns[index])
         keys = retarget.key_channels(retarget.bone_bases(request.rig, deltas), request.rotation_modes,
                                      request.root_bone)
         if not all(np.isfinite(values).all() for _, _, values in keys):
@@ -221,6 +218,12 @@ def run(request, model, sampler=None, progress=None):
             for joint, path in given.targets.items()})
         report(INFERENCE_SHARE + (1.0 - INFERENCE_SHARE) * (index + 1) / request.count)
     return Result(world, contacts, given.targets, channels, shortfall, _nearest_other(world))
+
+
+def _yaw(armature_to_world):
+    """The armature's turn about Z since the first frame (F or 1,), radians."""
+    angle = np.unwrap(np.arctan2(armature_to_world[:, 1, 0], armature_to_world[:, 0, 0]))
+    return angle - angle[0]
 
 
 def _nearest_other(motion):

@@ -1,0 +1,30 @@
+"""Filters over the frames of a motion (the last axis of their input): eases, running minima,
+smoothing; edges are held."""
+
+import numpy as np
+
+
+def smoothstep(x):
+    """3x^2 - 2x^3 of x clipped to [0, 1]: an ease with no velocity at either end."""
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+def _windows(values, half):
+    """Views (..., F, 2 half + 1) of frames t - half .. t + half of values (..., F), edges held."""
+    padded = np.concatenate([np.repeat(values[..., :1], half, -1), values, np.repeat(values[..., -1:], half, -1)], -1)
+    return np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1, axis=-1)
+
+
+def window_min(values, half):
+    """Minimum over frames t - half .. t + half of values (..., F)."""
+    return _windows(values, half).min(-1)
+
+
+def smooth(values, sigma):
+    """Gaussian smoothing (``sigma`` frames) of values (..., F) over frames."""
+    if sigma < 0.5:
+        return values
+    half = int(np.ceil(3 * sigma))
+    kernel = np.exp(-0.5 * (np.arange(-half, half + 1) / sigma) ** 2)
+    return _windows(values, half) @ (kernel / kernel.sum())
