@@ -3,7 +3,7 @@ PYTHON ?= python3.11
 VENV := .venv
 PY := $(VENV)/bin/python
 
-.PHONY: setup demo test bench-data bench-model bench-blender bench-scale package train train-sampler evaluate clean
+.PHONY: setup demo test bench-data bench-model bench-blender bench-scale bench-quality package train train-sampler evaluate clean
 
 $(VENV)/.installed: requirements.txt
 	$(PYTHON) -m venv $(VENV)
@@ -30,6 +30,9 @@ bench-blender: setup
 
 bench-scale: setup
 	$(PY) benchmarks/blender_scale.py
+
+bench-quality: setup
+	$(PY) benchmarks/quality.py
 
 # The extension zip, built and validated by Blender's own tool (out/trajevae-VERSION.zip).
 BLENDER_EXT = $(VENV)/lib/python3.11/site-packages/bpy/5.0/scripts/addons_core/bl_pkg/cli/blender_ext.py

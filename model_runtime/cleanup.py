@@ -10,14 +10,15 @@ artist's keys (``ease_onto_keys``), and every curve and key met exactly
 
 import numpy as np
 
-from .filters import smooth, smoothstep, window_min
+from .filters import smooth, smoothstep, window_max, window_min
 from .skeleton import JOINT_INDEX
 
 J = JOINT_INDEX
 FEET = ("RFoot", "LFoot")
-# The ground under the body: the lower ankle's lowest height over this many seconds either side, so
-# flights shorter than twice this (jumps) keep their height while slow drift up or down is removed.
-FLOOR_WINDOW_S = 0.5
+# The ground under the body: the lower ankle's height opened (lowest, then highest of the lowest)
+# over this many seconds either side, so flights shorter than twice this (jumps) keep their height
+# while slow drift up or down is removed.
+FLOOR_WINDOW_S = 0.25
 # An ankle within this height of where it stood at the start is planted: a foot that moves along
 # the floor without lifting is sliding, which an animator never wants.
 CONTACT_HEIGHT_M = 0.04
@@ -38,7 +39,8 @@ def on_floor(motion, fps, standing):
     away over a long shot, flights shorter than 2 FLOOR_WINDOW_S kept."""
     lower = motion[..., [J[foot] for foot in FEET], 2].min(-1) - standing  # (V, F)
     half = max(1, int(round(FLOOR_WINDOW_S * fps)))
-    ground = np.minimum(smooth(window_min(lower, half), half / 3.0), lower)
+    opened = window_max(window_min(lower, half), half)  # follows slow drift, drops narrower flights
+    ground = _eased_in(np.minimum(smooth(opened, half / 3.0), lower), fps)
     out = motion.copy()
     out[..., 2] -= ground[..., None]
     return out
@@ -55,6 +57,13 @@ def _bridge(values, start, end, still_start=False):
     m1 = velocity(end)[:, None]
     values[:, start:end + 1] = ((2 * t ** 3 - 3 * t ** 2 + 1) * p0 + (t ** 3 - 2 * t ** 2 + t) * span * m0
                                 + (-2 * t ** 3 + 3 * t ** 2) * p1 + (t ** 3 - t ** 2) * span * m1)
+
+
+def _eased_in(correction, fps):
+    """A correction (V, F, ...) scaled from nothing at the first frame (the rig's own pose, which
+    stays as the artist left it) to all of it START_EASE_S later."""
+    ramp = smoothstep(np.arange(correction.shape[1]) / max(START_EASE_S * fps, 1.0))
+    return correction * ramp.reshape(1, -1, *([1] * (correction.ndim - 2)))
 
 
 def ease_out_of_start(motion, fps):
@@ -172,7 +181,8 @@ def without_slide(motion, fps, standing, pinned, initial, targets):
         distance = np.linalg.norm(gap, axis=-1)
         back += gap * np.clip(1.0 - across / np.maximum(distance, 1e-9), 0.0, None)[..., None]
     out = motion.copy()
-    out[..., :2] += (shift + np.swapaxes(smooth(np.swapaxes(back, 1, 2), REACH_EASE_S * fps), 1, 2))[:, :, None]
+    back = np.swapaxes(smooth(np.swapaxes(back, 1, 2), REACH_EASE_S * fps), 1, 2)
+    out[..., :2] += _eased_in(shift + back, fps)[:, :, None]
     return out
 
 
@@ -259,13 +269,18 @@ def pin(motion, targets, keyed):
     return motion
 
 
-def pinned_joints(frames, targets, keyed):
-    """(frames, 17): 1 where the artist fixed a joint on a frame (a curve's joint, a keyed joint)."""
+def pinned_joints(frames, targets, keyed, fps=None):
+    """(frames, 17): 1 where the artist fixed a joint on a frame (a curve's joint, a keyed joint).
+    With ``fps``, a key's weight also eases out over KEY_BRIDGE_S either side of it, so what the
+    retarget does differently for fixed joints comes in without a step."""
     pinned = np.zeros((frames, len(J)))
     for joint in targets:
         pinned[:, J[joint]] = 1.0
-    for index, joints in keyed.items():
-        pinned[index, [J[joint] for joint in joints]] = 1.0
+    half = max(KEY_BRIDGE_S * fps, 1.0) if fps else 0.5
+    near = 1.0 - smoothstep(np.abs(np.arange(frames)[:, None] - np.array(sorted(keyed))[None]) / half)  # (F, keys)
+    for column, index in enumerate(sorted(keyed)):
+        for joint in keyed[index]:
+            pinned[:, J[joint]] = np.maximum(pinned[:, J[joint]], near[:, column])
     return pinned
 
 

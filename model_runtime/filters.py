@@ -1,5 +1,5 @@
-"""Filters over the frames of a motion (the last axis of their input): eases, running minima,
-smoothing; edges are held."""
+"""Filters over the frames of a motion (the last axis of their input): eases, running minima and
+maxima, smoothing."""
 
 import numpy as np
 
@@ -11,14 +11,26 @@ def smoothstep(x):
 
 
 def _windows(values, half):
-    """Views (..., F, 2 half + 1) of frames t - half .. t + half of values (..., F), edges held."""
-    padded = np.concatenate([np.repeat(values[..., :1], half, -1), values, np.repeat(values[..., -1:], half, -1)], -1)
-    return np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1, axis=-1)
+    """Views (..., F, 2 half + 1) of frames t - half .. t + half of values (..., F). Beyond the ends
+    the values go on as they were going (point-reflected about the end frames), so a steady trend
+    is filtered without bending at the edges; a motion shorter than the window is held instead."""
+    if values.shape[-1] > half:
+        before = 2 * values[..., :1] - values[..., half:0:-1]
+        after = 2 * values[..., -1:] - values[..., -2:-half - 2:-1]
+    else:
+        before, after = np.repeat(values[..., :1], half, -1), np.repeat(values[..., -1:], half, -1)
+    return np.lib.stride_tricks.sliding_window_view(np.concatenate([before, values, after], -1), 2 * half + 1,
+                                                    axis=-1)
 
 
 def window_min(values, half):
     """Minimum over frames t - half .. t + half of values (..., F)."""
     return _windows(values, half).min(-1)
+
+
+def window_max(values, half):
+    """Maximum over frames t - half .. t + half of values (..., F)."""
+    return _windows(values, half).max(-1)
 
 
 def smooth(values, sigma):

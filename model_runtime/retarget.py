@@ -30,8 +30,9 @@ from .skeleton import JOINT_INDEX
 J = JOINT_INDEX
 LIMBS = (("RHip", "RKnee", "RFoot"), ("LHip", "LKnee", "LFoot"),
          ("RShoulder", "RElbow", "RWrist"), ("LShoulder", "LElbow", "LWrist"))
-# Share of a limb's length it is stretched to at most: fully straight limbs flip their bend.
-REACH_MARGIN = 0.999
+# Share of a limb's length it is stretched to at most: a limb held straight keeps a hint of bend, so
+# the solve still knows which way it bends (a keyed straight arm's elbow is met within 4 mm).
+REACH_MARGIN = 0.9999
 # Generated hips or shoulders narrower than this share of the rig's are not trusted for direction;
 # directions are smoothed over this many frames (sigma).
 ACROSS_TRUST = 0.6
@@ -143,7 +144,7 @@ def joint_deltas(rig, targets, pinned=None, foot_turns=None):
 
     across = lambda pose, l, r: pose[..., J[l], :] - pose[..., J[r], :]
     up = lambda pose: pose[..., J["Thorax"], :] - pose[..., J["Hip"], :]
-    hips, shoulders = _steady_across(start, targets)
+    hips, shoulders = _steady_across(start, targets, pinned)
     pelvis = frame(hips, up(targets)) @ frame(  # the hips exactly, then the lean
         across(start, "LHip", "RHip"), up(start)).T
     free = np.ones(len(targets)) if pinned is None else 1.0 - pinned[:, J["Hip"]]
@@ -164,15 +165,17 @@ def joint_deltas(rig, targets, pinned=None, foot_turns=None):
     turns = {"RFoot": heading, "LFoot": heading} if foot_turns is None else {
         "RFoot": foot_turns[:, 0], "LFoot": foot_turns[:, 1]}
     for upper, lower, end in LIMBS:
-        deltas.update(_limb(rig, targets, carried(upper), upper, lower, end, turns.get(end)))
+        fixed = np.zeros(frames) if pinned is None else pinned[:, J[lower]]
+        deltas.update(_limb(rig, targets, carried(upper), upper, lower, end, turns.get(end), fixed))
     return deltas
 
 
-def _steady_across(start, targets):
+def _steady_across(start, targets, pinned=None):
     """(hips, shoulders) left-right directions (F, 3) of targets (F, 17, 3). Where generated hips
     (or shoulders) lie closer together than ACROSS_TRUST of the rig's width their direction is
     noise that spun the pelvis by over 100 degrees in a frame, so the other pair's direction takes
-    over in proportion, and where both are narrow, the neighbouring frames' (ACROSS_SMOOTHING)."""
+    over in proportion, and where both are narrow, the neighbouring frames' (ACROSS_SMOOTHING);
+    pairs the artist fixed (``pinned`` (F, 17), keys) keep their own direction."""
     def pair(pose, left, right):
         return pose[..., J[left], :] - pose[..., J[right], :]
 
@@ -181,10 +184,14 @@ def _steady_across(start, targets):
         vector = pair(targets, left, right)
         trust = np.clip(np.linalg.norm(vector, axis=-1) / (ACROSS_TRUST * np.linalg.norm(pair(start, left, right))),
                         0.0, 1.0)
-        weighted.append((_unit(vector) * trust[:, None], trust[:, None]))
-    (hips, hip_trust), (shoulders, shoulder_trust) = weighted
+        fixed = np.zeros(len(targets)) if pinned is None else np.minimum(pinned[:, J[left]], pinned[:, J[right]])
+        weighted.append((_unit(vector), trust[:, None], fixed[:, None]))
+    (hips, hip_trust, hips_fixed), (shoulders, shoulder_trust, shoulders_fixed) = weighted
     steady = lambda v: _unit(np.swapaxes(smooth(np.swapaxes(v, 0, 1), ACROSS_SMOOTHING), 0, 1))
-    return steady(hips + (1.0 - hip_trust) * shoulders), steady(shoulders + (1.0 - shoulder_trust) * hips)
+    mixed_hips = steady(hip_trust * hips + (1.0 - hip_trust) * shoulder_trust * shoulders)
+    mixed_shoulders = steady(shoulder_trust * shoulders + (1.0 - shoulder_trust) * hip_trust * hips)
+    return (_unit(hips_fixed * hips + (1.0 - hips_fixed) * mixed_hips),
+            _unit(shoulders_fixed * shoulders + (1.0 - shoulders_fixed) * mixed_shoulders))
 
 
 def _axis_angle_matrix(axis, angle):
@@ -236,9 +243,10 @@ def _reach_feet(rig, targets, pelvis, free, rounds=4):
     return pelvis
 
 
-def _limb(rig, targets, parent, upper, lower, end, heading):
+def _limb(rig, targets, parent, upper, lower, end, heading, fixed):
     """Deltas of a limb's three joints: a two-bone solve toward the end target; a foot keeps its
-    initial orientation turned by ``heading`` (F,) about Z (None for a hand)."""
+    initial orientation turned by ``heading`` (F,) about Z (None for a hand). Where ``fixed`` (F,)
+    is 1 the artist put the middle joint where it is (a key), so its bend is taken as given."""
     start = rig.joints
     root = _apply(parent, start[J[upper]])
     first, second = (np.linalg.norm(start[J[b]] - start[J[a]]) for a, b in ((upper, lower), (lower, end)))
@@ -261,7 +269,7 @@ def _limb(rig, targets, parent, upper, lower, end, heading):
     limit = np.radians(MAX_BEND_TURN["leg" if end.endswith("Foot") else "arm"])
     angle = np.arctan2(bend_y, bend_x)
     behind = np.clip((np.pi - np.abs(angle)) / (0.5 * np.pi), 0.0, 1.0)  # a bend generated backwards counts less
-    turn = np.clip(angle, -limit, limit) * behind * size / (size + POLE_PRIOR * first)
+    turn = fixed * angle + (1.0 - fixed) * np.clip(angle, -limit, limit) * behind * size / (size + POLE_PRIOR * first)
     pole = np.cos(turn)[:, None] * own_bend + np.sin(turn)[:, None] * side
     cos = (first ** 2 + reach ** 2 - second ** 2) / (2.0 * first * reach)
     middle = root + first * (cos[:, None] * along + np.sqrt(np.clip(1.0 - cos ** 2, 0.0, 1.0))[:, None] * pole)

@@ -217,11 +217,10 @@ def prepare(armature, count=5, seed=0, diversity=1.0, scene=None):
         request.curves[joint] = (points, times if use_drawing_speed else None)
         request.curve_names[joint] = obj.name
     inference.model()  # loaded here, so missing or broken weights are said before any work
-    if not paths and not keys:
-        note = inference.missing_sampler_note()
-        if note:
-            warnings.append(note)
-        inference.sampler()
+    inference.sampler()
+    note = inference.missing_sampler_note()
+    if note:
+        warnings.append(note)
     shot.check_reach(request, shot.model_input(request))
     return Job(request, bones, switches, switches_before, shown_by, warnings,
                seconds={"read": time.perf_counter() - clock})

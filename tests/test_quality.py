@@ -1,0 +1,126 @@
+"""Motion an animator keeps (issue 15): planted feet, a floor, eased keys, variants apart. Measured
+on the mannequin as Blender plays each variant (``blender_rigs.played``), and the cleanup steps on
+their own with synthetic motion."""
+
+import bpy  # noqa: F401  (first: blender_rigs imports Blender's own modules)
+import numpy as np
+import pytest
+
+import blender_rigs
+import shots
+from model_runtime import animation_quality, cleanup
+from model_runtime.skeleton import JOINT_INDEX
+from trajevae_addon import api, pipeline
+from trajevae_addon import mannequin as mannequin_module
+
+FPS = 30
+
+
+@pytest.fixture
+def mannequin(scene):
+    scene.render.fps = FPS
+    return blender_rigs.mannequin_rig(scene)
+
+
+def _played(scene, rig, report):
+    """Per variant (joints (F, 17, 3), toes (F, 2, 3)) as played."""
+    frames = np.arange(scene.frame_start, scene.frame_end + 1)
+    out = []
+    for action in report.actions:
+        api.set_active_variant(rig, action)
+        out.append(blender_rigs.played(rig, frames))
+    return out
+
+
+def test_standing_variants_keep_their_feet_planted_on_the_floor(scene, mannequin):
+    scene.frame_end = 150
+    shots = _played(scene, mannequin, pipeline.generate_variants(mannequin, 3, 0))
+    for joints, toes in shots:
+        floor = animation_quality.floor_height(toes)
+        speed = animation_quality.planted_toe_speed(toes, FPS, floor)
+        highest, airborne, sink = animation_quality.floating(toes, floor)
+        print(f"idle: planted toes {speed:.3f} m/s, lower toe up to {100 * highest:.1f} cm, airborne "
+              f"{100 * airborne:.0f} %, sink {100 * sink:.1f} cm")
+        assert speed <= 0.05 and sink <= 0.01 and airborne <= 0.05
+
+
+def test_a_300_frame_shot_with_a_curve_stays_on_the_floor(scene, mannequin):
+    scene.frame_end = 300
+    curves, _ = shots.wave(mannequin)
+    api.bind_curve(mannequin, "RWrist", blender_rigs.curve(scene, "wave", curves["RWrist"]))
+    report = pipeline.generate_variants(mannequin, 2, 0)
+    for joints, toes in _played(scene, mannequin, report):
+        floor = animation_quality.floor_height(toes)
+        lower = toes[..., 2].min(axis=1) - floor
+        speed = animation_quality.planted_toe_speed(toes, FPS, floor)
+        print(f"300 frames: lower toe median {100 * np.median(lower):.1f} cm, last 100 frames median "
+              f"{100 * np.median(lower[-100:]):.1f} cm, sink {100 * max(0, -lower.min()):.1f} cm, planted toes "
+              f"{speed:.3f} m/s, lean up to {animation_quality.lean_degrees(joints).max():.0f} degrees")
+        assert lower.min() >= -0.01 and np.median(lower) <= 0.01 and np.median(lower[-100:]) <= 0.01
+        assert speed <= 0.1
+    assert all(error < 0.01 for error in report.curve_error_m)
+
+
+def test_blocking_keys_are_approached_not_snapped(scene, mannequin):
+    _, key_frame = shots.blocking(mannequin)  # rest pose at 1, a crouch with both arms up at 45
+    scene.frame_set(key_frame)
+    keyed = blender_rigs.world_joints(mannequin)
+    scene.frame_set(1)
+    for joints, toes in _played(scene, mannequin, pipeline.generate_variants(mannequin, 3, 0)):
+        worst, spike = animation_quality.pops(joints, FPS)
+        # every joint but the head, which no key places (the neck bone aims at it)
+        missed = np.delete(np.linalg.norm(joints[key_frame - 1] - keyed, axis=-1), JOINT_INDEX["Head"]).max()
+        print(f"blocking: worst acceleration {worst:.0f} m/s^2, {spike:.1f}x the median frame's; key missed by "
+              f"{100 * missed:.2f} cm")
+        assert spike <= 6.0 and missed < 0.01
+
+
+def test_variants_with_one_hand_curve_are_apart_and_on_the_curve(scene, mannequin):
+    scene.frame_end = 90
+    curves, _ = shots.reach(mannequin)
+    api.bind_curve(mannequin, "RWrist", blender_rigs.curve(scene, "reach", curves["RWrist"]))
+    report = pipeline.generate_variants(mannequin, 5, 0)
+    spread = animation_quality.spread(np.array([joints for joints, _ in _played(scene, mannequin, report)]))
+    print(f"one hand curve: 5 variants {spread:.3f} m apart; curve error as played "
+          f"{[round(100 * e, 2) for e in report.curve_error_m]} cm")
+    assert spread >= 0.15 and all(error < 0.01 for error in report.curve_error_m)
+
+
+def _still(frames):
+    """The mannequin's rest pose held for ``frames`` frames: (1, F, 17, 3), feet on z = ankle height."""
+    return np.repeat(mannequin_module.REST_JOINTS[None, None].astype(np.float64), frames, axis=1)
+
+
+def test_on_floor_removes_drift_and_keeps_a_jump():
+    motion, standing = _still(150), mannequin_module.REST_JOINTS[JOINT_INDEX["RFoot"], 2]
+    motion[..., 2] += np.linspace(0.0, 0.3, 150)[None, :, None]  # the body floats up 30 cm
+    jump = np.zeros(150)
+    jump[60:73] = 0.2 * np.sin(np.linspace(0.0, np.pi, 13))  # a 0.4 s jump, 20 cm high
+    motion[..., 2] += jump[None, :, None]
+    lower = cleanup.on_floor(motion, FPS, standing)[0, :, [JOINT_INDEX["RFoot"], JOINT_INDEX["LFoot"]], 2].min(0)
+    lower -= standing
+    print(f"floor: off the jump up to {100 * np.delete(lower, np.s_[55:78]).max():.2f} cm, jump peak "
+          f"{100 * lower[66]:.1f} cm")
+    assert np.abs(np.delete(lower, np.s_[55:78])).max() < 0.01 and lower[66] > 0.15 and lower.min() > -1e-9
+
+
+def test_a_sliding_body_is_held_by_its_planted_feet():
+    motion, initial = _still(90), mannequin_module.REST_JOINTS.astype(np.float64)
+    motion[..., 1] += np.arange(90)[None, :, None] * 0.5 / FPS  # feet and all glide at 0.5 m/s
+    standing, pinned = initial[JOINT_INDEX["RFoot"], 2], np.zeros((90, 17))
+    held = cleanup.without_slide(motion, FPS, standing, pinned, initial, {})
+    held, contacts, turns = cleanup.plant_feet(held, FPS, standing, pinned, initial)
+    feet = held[0][:, [JOINT_INDEX["RFoot"], JOINT_INDEX["LFoot"]]]
+    speed = np.linalg.norm(np.diff(feet[..., :2], axis=0), axis=-1).max() * FPS
+    assert contacts.all() and speed < 1e-6 and np.abs(turns).max() < 1e-9
+
+
+def test_a_key_is_eased_into_and_met_exactly():
+    motion = _still(60)
+    key = motion[0, 40, JOINT_INDEX["LWrist"]] + [0.0, -0.2, 0.3]
+    motion[0, 38:43, JOINT_INDEX["LWrist"]] = key  # the model jumps onto the key at the last moment
+    eased = cleanup.ease_onto_keys(motion, {40: {"LWrist": key}}, FPS)[0, :, JOINT_INDEX["LWrist"]]
+    acceleration = np.linalg.norm(np.diff(eased, n=2, axis=0), axis=-1) * FPS ** 2
+    print(f"eased key: worst acceleration {acceleration.max():.2f} m/s^2")
+    np.testing.assert_allclose(eased[40], key)
+    assert acceleration.max() < 3.0
