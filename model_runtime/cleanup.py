@@ -144,10 +144,12 @@ def _contact_flags(motion, fps, standing, pinned):
 
 LIMBS = (("RShoulder", "RElbow", "RWrist"), ("LShoulder", "LElbow", "LWrist"),
          ("RHip", "RKnee", "RFoot"), ("LHip", "LKnee", "LFoot"))
-# Share of a limb's length the body keeps its pinned hands and feet within (of the generated
-# shoulder or hip) while it stops sliding: the rig's own shoulder lands up to a fifth of an arm away.
+# Share of an arm's length the body keeps its pinned hands within (of the generated shoulder)
+# while it stops sliding: the rig's own shoulder lands up to a fifth of an arm away. Feet on curves
+# are kept within STAND_SHARE of a leg, which is also as far as the hips rise to let a hand reach.
 REACH_SHARE = 0.8
 REACH_EASE_S = 0.2
+STAND_SHARE = 0.97
 # A planted foot left this many legs behind its hip (horizontally) steps: it lifts STEP_CLEARANCE_M
 # for STEP_S and plants again where the body has taken it.
 STEP_TRIGGER = 0.4
@@ -162,27 +164,33 @@ def _limb_length(initial, limb):
 def without_slide(motion, fps, standing, pinned, initial, targets):
     """The whole body moved against the slide of its planted feet: while a foot is planted, its
     horizontal drift is the body's, taken out frame by frame (where the hips are not pinned), as
-    far as the hands and feet on curves ({joint: (F, 3)}) stay within reach of the body; what
-    brings them back within reach is eased over REACH_EASE_S."""
+    far as the hands and feet on curves ({joint: (F, 3)}) stay within reach of the body. What
+    brings them back within reach is eased over REACH_EASE_S; its upward part raises the body
+    above its feet (the legs straighten, up to STAND_SHARE of their length) rather than lifting
+    the feet off the floor."""
     planted = _contact_flags(motion, fps, standing, pinned)  # (V, F, 2)
     velocity = np.diff(motion[..., [J[foot] for foot in FEET], :2], axis=1)  # (V, F - 1, 2, 2)
     both = planted[:, 1:] & planted[:, :-1]
     slide = (velocity * both[..., None]).sum(-2) / np.maximum(both.sum(-1), 1)[..., None]  # (V, F - 1, 2)
     slide *= (1.0 - pinned[1:, J["Hip"]])[None, :, None]
-    shift = np.concatenate([np.zeros((len(motion), 1, 2)), -np.cumsum(slide, axis=1)], axis=1)  # (V, F, 2)
+    shift = np.zeros(motion.shape[:2] + (3,))
+    shift[:, 1:, :2] = -np.cumsum(slide, axis=1)
     back = np.zeros_like(shift)
     for limb in LIMBS:
         if limb[-1] not in targets:
             continue
-        root, end = motion[:, :, J[limb[0]]], targets[limb[-1]]
-        across = np.sqrt(np.maximum((REACH_SHARE * _limb_length(initial, limb)) ** 2 - (end[:, 2] - root[..., 2]) ** 2,
-                                    0.0))
-        gap = end[:, :2] - root[..., :2] - shift - back
+        share = STAND_SHARE if limb[-1] in FEET else REACH_SHARE
+        gap = targets[limb[-1]] - motion[:, :, J[limb[0]]] - shift - back
         distance = np.linalg.norm(gap, axis=-1)
-        back += gap * np.clip(1.0 - across / np.maximum(distance, 1e-9), 0.0, None)[..., None]
-    out = motion.copy()
+        back += gap * np.clip(1.0 - share * _limb_length(initial, limb) / np.maximum(distance, 1e-9), 0.0,
+                              None)[..., None]
+    legs = min(_limb_length(initial, leg) for leg in LIMBS[2:])
+    room = motion[..., [J[foot] for foot in FEET], 2].min(-1) + STAND_SHARE * legs - motion[..., J["Hip"], 2]
+    back[..., 2] = np.minimum(back[..., 2], np.maximum(room, 0.0))  # (V, F): how far the hips can still rise
     back = np.swapaxes(smooth(np.swapaxes(back, 1, 2), REACH_EASE_S * fps), 1, 2)
-    out[..., :2] += _eased_in(shift + back, fps)[:, :, None]
+    move = _eased_in(shift + back, fps)
+    out = motion + move[:, :, None]
+    out[:, :, [J[foot] for foot in FEET], 2] -= move[:, :, None, 2]  # the feet stay on the floor
     return out
 
 

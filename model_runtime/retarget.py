@@ -37,6 +37,8 @@ REACH_MARGIN = 0.9999
 # directions are smoothed over this many frames (sigma).
 ACROSS_TRUST = 0.6
 ACROSS_SMOOTHING = 1.5
+# The most (degrees) the chest turns toward each pinned hand beyond reach.
+MAX_LEAN_TO_HAND = 30.0
 # How far (degrees) a knee or elbow may point away from the way its hinge bends it, and the bend (in
 # upper-limb lengths) at which the generated direction counts half.
 MAX_BEND_TURN = {"leg": 30.0, "arm": 90.0}
@@ -204,7 +206,8 @@ def _axis_angle_matrix(axis, angle):
 
 def _lean_to_hands(rig, targets, chest, pivot, pinned):
     """The chest delta (F, 4, 4) turned about the spine bone's head, just enough for a pinned hand
-    beyond the arm's reach to come within it (as a body leans to reach)."""
+    beyond the arm's reach to come within it (as a body leans to reach), by MAX_LEAN_TO_HAND at
+    most: further, a body would step rather than fold."""
     start = rig.joints
     for shoulder, elbow, wrist in LIMBS[2:]:
         reach = REACH_MARGIN * (np.linalg.norm(start[J[elbow]] - start[J[shoulder]])
@@ -215,7 +218,7 @@ def _lean_to_hands(rig, targets, chest, pivot, pinned):
         r, d = np.linalg.norm(arm, axis=-1), np.linalg.norm(goal, axis=-1)
         between = np.arccos(np.clip(np.sum(arm * goal, -1) / np.maximum(r * d, 1e-12), -1.0, 1.0))
         closest = np.arccos(np.clip((r ** 2 + d ** 2 - reach ** 2) / np.maximum(2 * r * d, 1e-12), -1.0, 1.0))
-        turn = np.clip(between - closest, 0.0, between) * pinned[:, J[wrist]]
+        turn = np.clip(between - closest, 0.0, np.minimum(between, np.radians(MAX_LEAN_TO_HAND))) * pinned[:, J[wrist]]
         rotation = _axis_angle_matrix(_unit(np.cross(arm, goal)), turn) @ chest[:, :3, :3]
         chest = _rigid(rotation, pivot, centre)
     return chest
