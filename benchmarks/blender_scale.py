@@ -51,7 +51,15 @@ def main():
     clock = time.perf_counter()
     job = pipeline.prepare(rig, VARIANTS, 0)
     main_thread += time.perf_counter() - clock
-    worker = threading.Thread(target=pipeline.infer, args=(job,))
+    failures = []
+
+    def work():
+        try:
+            pipeline.infer(job)
+        except Exception as error:  # said below, as the operator would
+            failures.append(error)
+
+    worker = threading.Thread(target=work)
     clock = time.perf_counter()
     worker.start()
     reported = []
@@ -59,6 +67,8 @@ def main():
         time.sleep(0.5)
         reported.append(job.progress)
     worker_seconds = time.perf_counter() - clock
+    if failures:
+        raise failures[0]
     writer = pipeline.Writer(job, rig)
     longest = 0.0
     while not writer.done:

@@ -2,16 +2,17 @@
 the model's frame (metres, Z up, the floor at z = 0 where the rig's toes stood at the start).
 
 ``tidy`` runs the steps in order: the start eased out of the rig's pose
-(``ease_out_of_start``), the body put back on the floor (``on_floor``), carried against its planted feet's slide (``without_slide``),
-planted feet held still with their heading (``plant_feet``), eased onto the
-artist's keys (``ease_onto_keys``), and every curve and key met exactly
-(``pin``). Motions are (V, F, 17, 3).
+(``ease_out_of_start``), the body put back on the floor (``on_floor``),
+carried against its planted feet's slide and kept within reach of its curves
+(``without_slide``), planted feet held still with their heading
+(``plant_feet``), eased onto the artist's keys (``ease_onto_keys``), and every
+curve and key met exactly (``pin``). Motions are (V, F, 17, 3).
 """
 
 import numpy as np
 
 from .filters import smooth, smoothstep, window_max, window_min
-from .skeleton import JOINT_INDEX
+from .skeleton import JOINT_INDEX, LIMBS
 
 J = JOINT_INDEX
 FEET = ("RFoot", "LFoot")
@@ -31,6 +32,17 @@ KEY_BRIDGE_S = 0.25
 # shuffled along the floor and is held through.
 MIN_CONTACT_S = 0.1
 STEP_LIFT_M = 0.06
+# Share of an arm's length the body keeps its pinned hands within (of the generated shoulder)
+# while it stops sliding: the rig's own shoulder lands up to a fifth of an arm away. Feet on curves
+# are kept within STAND_SHARE of a leg, which is also as far as the hips rise to let a hand reach.
+REACH_SHARE = 0.8
+REACH_EASE_S = 0.2
+STAND_SHARE = 0.97
+# A planted foot left this many legs behind its hip (horizontally) steps: it lifts STEP_CLEARANCE_M
+# for STEP_S and plants again where the body has taken it.
+STEP_TRIGGER = 0.4
+STEP_S = 0.3
+STEP_CLEARANCE_M = 0.08
 
 
 def on_floor(motion, fps, standing):
@@ -90,9 +102,7 @@ def ease_onto_keys(motion, keyed, fps):
         for index in sorted(index for index, keys in keyed.items() if joint in keys):
             start, end = max(index - half, 0), min(index + half, len(frames) - 1)
             if end - start > 1:
-                track = out[:, :, J[joint]]
-                _bridge(track, start, end)
-                out[:, :, J[joint]] = track
+                _bridge(out[:, :, J[joint]], start, end)  # a view: bridged in place
         times = [0] + sorted(index for index, keys in keyed.items() if joint in keys)
         offsets = [np.zeros((len(motion), 3))] + [keyed[index][joint] - out[:, index, J[joint]]
                                                   for index in times[1:]]
@@ -142,21 +152,6 @@ def _contact_flags(motion, fps, standing, pinned):
     return flags
 
 
-LIMBS = (("RShoulder", "RElbow", "RWrist"), ("LShoulder", "LElbow", "LWrist"),
-         ("RHip", "RKnee", "RFoot"), ("LHip", "LKnee", "LFoot"))
-# Share of an arm's length the body keeps its pinned hands within (of the generated shoulder)
-# while it stops sliding: the rig's own shoulder lands up to a fifth of an arm away. Feet on curves
-# are kept within STAND_SHARE of a leg, which is also as far as the hips rise to let a hand reach.
-REACH_SHARE = 0.8
-REACH_EASE_S = 0.2
-STAND_SHARE = 0.97
-# A planted foot left this many legs behind its hip (horizontally) steps: it lifts STEP_CLEARANCE_M
-# for STEP_S and plants again where the body has taken it.
-STEP_TRIGGER = 0.4
-STEP_S = 0.3
-STEP_CLEARANCE_M = 0.08
-
-
 def _limb_length(initial, limb):
     return sum(np.linalg.norm(initial[J[b]] - initial[J[a]]) for a, b in zip(limb, limb[1:]))
 
@@ -184,7 +179,7 @@ def without_slide(motion, fps, standing, pinned, initial, targets):
         distance = np.linalg.norm(gap, axis=-1)
         back += gap * np.clip(1.0 - share * _limb_length(initial, limb) / np.maximum(distance, 1e-9), 0.0,
                               None)[..., None]
-    legs = min(_limb_length(initial, leg) for leg in LIMBS[2:])
+    legs = min(_limb_length(initial, leg) for leg in LIMBS[:2])
     room = motion[..., [J[foot] for foot in FEET], 2].min(-1) + STAND_SHARE * legs - motion[..., J["Hip"], 2]
     back[..., 2] = np.minimum(back[..., 2], np.maximum(room, 0.0))  # (V, F): how far the hips can still rise
     back = np.swapaxes(smooth(np.swapaxes(back, 1, 2), REACH_EASE_S * fps), 1, 2)
@@ -220,13 +215,19 @@ def _steps_when_left_behind(planted, ankle, hip, leg, fps):
     curve, say): the foot lifts for STEP_S and plants again under the body."""
     planted = planted.copy()
     swing = max(2, int(round(STEP_S * fps)))
-    for start, end in _runs(planted):
-        reach = np.linalg.norm(hip[start:end + 1, :2] - ankle[start, :2], axis=-1)
-        far = np.flatnonzero(reach > STEP_TRIGGER * leg)
+    frame = 0
+    while True:
+        later = [(start, end) for start, end in _runs(planted) if end >= frame]
+        if not later:
+            return planted
+        start, end = later[0]
+        start = max(start, frame)
+        far = np.flatnonzero(np.linalg.norm(hip[start:end + 1, :2] - ankle[start, :2], axis=-1) > STEP_TRIGGER * leg)
         if len(far):
             planted[start + far[0]:start + far[0] + swing] = False
-            return _steps_when_left_behind(planted, ankle, hip, leg, fps)
-    return planted
+            frame = start + far[0] + swing
+        else:
+            frame = end + 1
 
 
 def _lift(frames, runs, height):
@@ -254,7 +255,7 @@ def plant_feet(motion, fps, standing, pinned, initial):
     for variant in range(len(motion)):
         for side, foot in enumerate(FEET):
             ankle, turn = motion[variant, :, J[foot]], pelvis[variant]
-            leg = LIMBS[2 + side]
+            leg = LIMBS[side]
             contacts[variant, :, side] = _steps_when_left_behind(contacts[variant, :, side], ankle,
                                                                  motion[variant, :, J[leg[0]]],
                                                                  _limb_length(initial, leg), fps)

@@ -25,11 +25,9 @@ import numpy as np
 
 from . import rotations
 from .filters import smooth
-from .skeleton import JOINT_INDEX
+from .skeleton import JOINT_INDEX, LIMBS
 
 J = JOINT_INDEX
-LIMBS = (("RHip", "RKnee", "RFoot"), ("LHip", "LKnee", "LFoot"),
-         ("RShoulder", "RElbow", "RWrist"), ("LShoulder", "LElbow", "LWrist"))
 # Share of a limb's length it is stretched to at most: a limb held straight keeps a hint of bend, so
 # the solve still knows which way it bends (a keyed straight arm's elbow is met within 4 mm).
 REACH_MARGIN = 0.9999

@@ -197,6 +197,7 @@ def run(request, model, sampler=None, progress=None):
     del motion
     targets = {joint: given.placement.to_model(path).astype(np.float64) for joint, path in given.targets.items()}
     scene_rate, contacts, turns = cleanup.tidy(scene_rate, request.fps, given.initial, targets, given.keyed)
+    report(INFERENCE_SHARE)  # a chance to stop before the retarget
     world = given.placement.to_world(scene_rate)
     del scene_rate
     if not np.isfinite(world).all():

@@ -26,6 +26,9 @@ LEFT_RIGHT_PAIRS = (
     ("LShoulder", "RShoulder"), ("LElbow", "RElbow"), ("LWrist", "RWrist"),
 )
 
+# The two-bone limbs, legs first (right, left), then arms: (root, middle, end) joints.
+LIMBS = (("RHip", "RKnee", "RFoot"), ("LHip", "LKnee", "LFoot"),
+         ("RShoulder", "RElbow", "RWrist"), ("LShoulder", "LElbow", "LWrist"))
 LOWER_BODY = ("Hip", "RHip", "RKnee", "RFoot", "LHip", "LKnee", "LFoot")
 UPPER_BODY = tuple(name for name in JOINT_NAMES if name not in LOWER_BODY)
 FEET = ("RFoot", "LFoot")

@@ -124,3 +124,15 @@ def test_a_key_is_eased_into_and_met_exactly():
     print(f"eased key: worst acceleration {acceleration.max():.2f} m/s^2")
     np.testing.assert_allclose(eased[40], key)
     assert acceleration.max() < 3.0
+
+
+def test_feet_left_behind_step_after_the_body_through_a_long_shot():
+    frames, initial = 3000, mannequin_module.REST_JOINTS.astype(np.float64)
+    motion = _still(frames)
+    motion[..., 1] += np.arange(frames)[None, :, None] * 1.0 / FPS  # carried off at 1 m/s (by a curve, say)
+    feet = [JOINT_INDEX["RFoot"], JOINT_INDEX["LFoot"]]
+    moved, contacts, _ = cleanup.plant_feet(motion, FPS, initial[feet[0], 2], np.zeros((frames, 17)), initial)
+    behind = np.linalg.norm(moved[0][:, feet, :2] - moved[0][:, [JOINT_INDEX["RHip"], JOINT_INDEX["LHip"]], :2], axis=-1)
+    steps = [int((np.diff(contacts[0, :, side].astype(int)) == 1).sum()) for side in range(2)]  # plants after the first
+    print(f"carried 100 m: {steps} steps, feet at most {behind.max():.2f} m behind the hips")
+    assert min(steps) > 50 and behind.max() < 0.6

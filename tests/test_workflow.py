@@ -162,3 +162,15 @@ def test_follow_path_constraint_counts_as_a_binding_and_is_restored(scene):
     api.restore_original(rig)
     scene.frame_set(11)
     assert constraint.influence == 1.0
+
+
+def test_progress_runs_to_the_end_through_every_stage(scene):
+    rig = blender_rigs.mannequin_rig(scene)
+    job = pipeline.prepare(rig, 3, 0)
+    seen = []
+    pipeline.infer(job, on_progress=seen.append)
+    writer = pipeline.Writer(job, rig)
+    while not writer.done:
+        writer.step(seconds=0.0)
+        seen.append(writer.progress)
+    assert seen == sorted(seen) and seen[0] > 0.0 and seen[-1] == pytest.approx(1.0)

@@ -314,7 +314,7 @@ class Writer:
     @property
     def progress(self):
         written, measured = self._written, sum(bool(m) for m in self._measured)
-        write_start = PROGRESS_END["retarget"]
+        write_start = PROGRESS_END["shot"]
         return (write_start + (PROGRESS_END["write"] - write_start) * written / self.job.count
                 + (PROGRESS_END["measure"] - PROGRESS_END["write"]) * measured / self.job.count)
 
