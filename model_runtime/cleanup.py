@@ -12,7 +12,7 @@ curve and key met exactly (``pin``). Motions are (V, F, 17, 3).
 import numpy as np
 
 from .filters import smooth, smoothstep, window_max, window_min
-from .skeleton import JOINT_INDEX, LIMBS
+from .skeleton import JOINT_INDEX, LIMBS, limb_length
 
 J = JOINT_INDEX
 FEET = ("RFoot", "LFoot")
@@ -152,10 +152,6 @@ def _contact_flags(motion, fps, standing, pinned):
     return flags
 
 
-def _limb_length(initial, limb):
-    return sum(np.linalg.norm(initial[J[b]] - initial[J[a]]) for a, b in zip(limb, limb[1:]))
-
-
 def without_slide(motion, fps, standing, pinned, initial, targets):
     """The whole body moved against the slide of its planted feet: while a foot is planted, its
     horizontal drift is the body's, taken out frame by frame (where the hips are not pinned), as
@@ -177,9 +173,9 @@ def without_slide(motion, fps, standing, pinned, initial, targets):
         share = STAND_SHARE if limb[-1] in FEET else REACH_SHARE
         gap = targets[limb[-1]] - motion[:, :, J[limb[0]]] - shift - back
         distance = np.linalg.norm(gap, axis=-1)
-        back += gap * np.clip(1.0 - share * _limb_length(initial, limb) / np.maximum(distance, 1e-9), 0.0,
+        back += gap * np.clip(1.0 - share * limb_length(initial, limb) / np.maximum(distance, 1e-9), 0.0,
                               None)[..., None]
-    legs = min(_limb_length(initial, leg) for leg in LIMBS[:2])
+    legs = min(limb_length(initial, leg) for leg in LIMBS[:2])
     room = motion[..., [J[foot] for foot in FEET], 2].min(-1) + STAND_SHARE * legs - motion[..., J["Hip"], 2]
     back[..., 2] = np.minimum(back[..., 2], np.maximum(room, 0.0))  # (V, F): how far the hips can still rise
     back = np.swapaxes(smooth(np.swapaxes(back, 1, 2), REACH_EASE_S * fps), 1, 2)
@@ -258,7 +254,7 @@ def plant_feet(motion, fps, standing, pinned, initial):
             leg = LIMBS[side]
             contacts[variant, :, side] = _steps_when_left_behind(contacts[variant, :, side], ankle,
                                                                  motion[variant, :, J[leg[0]]],
-                                                                 _limb_length(initial, leg), fps)
+                                                                 limb_length(initial, leg), fps)
             runs = _runs(contacts[variant, :, side])
             held = lambda start, end: np.array([ankle[start, 0], ankle[start, 1], standing]) - ankle[start:end + 1]
             out[variant, :, J[foot]] += _layer(frames, runs, held)

@@ -25,7 +25,7 @@ import numpy as np
 
 from . import rotations
 from .filters import smooth
-from .skeleton import JOINT_INDEX, LIMBS
+from .skeleton import JOINT_INDEX, LIMBS, limb_length
 
 J = JOINT_INDEX
 # Share of a limb's length it is stretched to at most: a limb held straight keeps a hint of bend, so
@@ -208,8 +208,7 @@ def _lean_to_hands(rig, targets, chest, pivot, pinned):
     most: further, a body would step rather than fold."""
     start = rig.joints
     for shoulder, elbow, wrist in LIMBS[2:]:
-        reach = REACH_MARGIN * (np.linalg.norm(start[J[elbow]] - start[J[shoulder]])
-                         + np.linalg.norm(start[J[wrist]] - start[J[elbow]]))
+        reach = REACH_MARGIN * limb_length(start, (shoulder, elbow, wrist))
         centre = _apply(chest, pivot)
         arm = _apply(chest, start[J[shoulder]]) - centre
         goal = targets[:, J[wrist]] - centre
@@ -235,8 +234,7 @@ def _reach_feet(rig, targets, pelvis, free, rounds=4):
     for _ in range(rounds):
         shift = np.zeros((len(targets), 3))
         for upper, lower, end in LIMBS[:2]:
-            reach = REACH_MARGIN * (np.linalg.norm(start[J[lower]] - start[J[upper]])
-                             + np.linalg.norm(start[J[end]] - start[J[lower]]))
+            reach = REACH_MARGIN * limb_length(start, (upper, lower, end))
             to_end = targets[:, J[end]] - _apply(pelvis, start[J[upper]])
             distance = np.linalg.norm(to_end, axis=-1, keepdims=True)
             shift += np.maximum(distance - reach, 0.0) * to_end / np.maximum(distance, 1e-9)
@@ -318,8 +316,8 @@ def reach_shortfall(rig, achieved, targets, joint):
     for limb in LIMBS:
         if joint in limb[1:]:
             chain = limb[: limb.index(joint) + 1]
-            length = sum(np.linalg.norm(rig.joints[J[b]] - rig.joints[J[a]]) for a, b in zip(chain, chain[1:]))
-            return np.maximum(np.linalg.norm(targets - achieved[:, J[chain[0]]], axis=-1) - REACH_MARGIN * length, 0.0)
+            return np.maximum(np.linalg.norm(targets - achieved[:, J[chain[0]]], axis=-1)
+                              - REACH_MARGIN * limb_length(rig.joints, chain), 0.0)
     return np.zeros(len(targets))
 
 

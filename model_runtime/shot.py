@@ -170,12 +170,11 @@ def check_reach(request, given):
         raise InputError("out of reach: " + "; ".join(problems))
 
 
-def to_armature(armature_to_world, points):
-    """World points (F, ..., 3) in armature space, each frame by the inverse of its matrix
-    (armature_to_world (F or 1, 4, 4))."""
-    inverse = np.linalg.inv(armature_to_world)
-    rotation = inverse[:, :3, :3].reshape(-1, *([1] * (points.ndim - 2)), 3, 3)
-    offset = inverse[:, :3, 3].reshape(-1, *([1] * (points.ndim - 2)), 3)
+def to_armature(world_to_armature, points):
+    """World points (F, ..., 3) in armature space, each frame by its matrix (world_to_armature
+    (F or 1, 4, 4), the inverse of the armature's world matrix)."""
+    rotation = world_to_armature[:, :3, :3].reshape(-1, *([1] * (points.ndim - 2)), 3, 3)
+    offset = world_to_armature[:, :3, 3].reshape(-1, *([1] * (points.ndim - 2)), 3)
     return (rotation @ points[..., None])[..., 0] + offset
 
 
@@ -205,19 +204,20 @@ def run(request, model, sampler=None, progress=None):
     pinned = cleanup.pinned_joints(frames, given.targets, given.keyed, request.fps)
     turns = turns - _yaw(request.armature_to_world)[None, :, None]  # the feet's turns in armature space
     world_scale = np.abs(np.linalg.det(request.armature_to_world[:, :3, :3])) ** (1.0 / 3.0)  # (F or 1,)
+    world_to_armature = np.linalg.inv(request.armature_to_world)
+    curves_here = {joint: to_armature(world_to_armature, path) for joint, path in given.targets.items()}
     channels, shortfall = [], []
     for index in range(request.count):
-        targets_here = to_armature(request.armature_to_world, world[index])
-        deltas = retarget.joint_deltas(request.rig, targets_here, pinned, turns[index])
+        deltas = retarget.joint_deltas(request.rig, to_armature(world_to_armature, world[index]), pinned,
+                                       turns[index])
         keys = retarget.key_channels(retarget.bone_bases(request.rig, deltas), request.rotation_modes,
                                      request.root_bone)
         if not all(np.isfinite(values).all() for _, _, values in keys):
             raise InputError("the retarget returned keys that are not a number for this rig; nothing was written")
         channels.append(keys)
         achieved = retarget.achieved_joints(request.rig, deltas)
-        shortfall.append({joint: world_scale * retarget.reach_shortfall(
-            request.rig, achieved, to_armature(request.armature_to_world, path), joint)
-            for joint, path in given.targets.items()})
+        shortfall.append({joint: world_scale * retarget.reach_shortfall(request.rig, achieved, path, joint)
+                          for joint, path in curves_here.items()})
         report(INFERENCE_SHARE + (1.0 - INFERENCE_SHARE) * (index + 1) / request.count)
     return Result(world, contacts, given.targets, channels, shortfall, _nearest_other(world))
 

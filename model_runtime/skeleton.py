@@ -29,6 +29,13 @@ LEFT_RIGHT_PAIRS = (
 # The two-bone limbs, legs first (right, left), then arms: (root, middle, end) joints.
 LIMBS = (("RHip", "RKnee", "RFoot"), ("LHip", "LKnee", "LFoot"),
          ("RShoulder", "RElbow", "RWrist"), ("LShoulder", "LElbow", "LWrist"))
+
+
+def limb_length(pose, chain):
+    """Length of a chain of joints (a limb or its first part) in a pose (17, 3): the sum of its bones."""
+    return sum(float(np.linalg.norm(pose[JOINT_INDEX[b]] - pose[JOINT_INDEX[a]])) for a, b in zip(chain, chain[1:]))
+
+
 LOWER_BODY = ("Hip", "RHip", "RKnee", "RFoot", "LHip", "LKnee", "LFoot")
 UPPER_BODY = tuple(name for name in JOINT_NAMES if name not in LOWER_BODY)
 FEET = ("RFoot", "LFoot")

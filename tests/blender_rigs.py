@@ -30,14 +30,12 @@ for side, word in (("L", "Left"), ("R", "Right")):
 def action_keys(action):
     """{(data path, index): the keys' (frame, value) pairs as bytes}: an action's keys, for an
     exact comparison."""
+    from trajevae_addon import actions
     out = {}
-    for layer in action.layers:
-        for strip in layer.strips:
-            for bag in strip.channelbags:
-                for fcurve in bag.fcurves:
-                    co = np.empty(len(fcurve.keyframe_points) * 2, dtype=np.float32)
-                    fcurve.keyframe_points.foreach_get("co", co)
-                    out[(fcurve.data_path, fcurve.array_index)] = co.tobytes()
+    for fcurve in actions.fcurves(action):
+        co = np.empty(len(fcurve.keyframe_points) * 2, dtype=np.float32)
+        fcurve.keyframe_points.foreach_get("co", co)
+        out[(fcurve.data_path, fcurve.array_index)] = co.tobytes()
     return out
 
 

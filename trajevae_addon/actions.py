@@ -58,12 +58,19 @@ def write(armature, name, frames, channels, switches):
     return action
 
 
-def samples_to_keys(action):
-    """Turn an action's baked samples into keys, in place."""
+def fcurves(action):
+    """Every F-curve of every slot of an action (none for None)."""
+    if action is None:
+        return
     for layer in action.layers:
         for strip in layer.strips:
             for bag in strip.channelbags:
-                for fcurve in bag.fcurves:
-                    if len(fcurve.sampled_points):
-                        first, last = fcurve.sampled_points[0].co[0], fcurve.sampled_points[-1].co[0]
-                        fcurve.convert_to_keyframes(int(first), int(last))
+                yield from bag.fcurves
+
+
+def samples_to_keys(action):
+    """Turn an action's baked samples into keys, in place."""
+    for fcurve in fcurves(action):
+        if len(fcurve.sampled_points):
+            first, last = fcurve.sampled_points[0].co[0], fcurve.sampled_points[-1].co[0]
+            fcurve.convert_to_keyframes(int(first), int(last))

@@ -96,20 +96,10 @@ def scene_frames(scene):
     return np.arange(start, end + 1)
 
 
-def _fcurves(action):
-    """Every F-curve of every slot of an action (none for None)."""
-    if action is None:
-        return
-    for layer in action.layers:
-        for strip in layer.strips:
-            for bag in strip.channelbags:
-                yield from bag.fcurves
-
-
 def _key_frames(action, bones, frames):
     """{scene frame: keyed bones} of the action's keys on ``bones`` inside ``frames``, start excluded."""
     out = {}
-    for fcurve in _fcurves(action):
+    for fcurve in actions.fcurves(action):
         if not fcurve.data_path.startswith('pose.bones["'):
             continue
         bone = fcurve.data_path.split('"')[1]
@@ -129,7 +119,7 @@ def _moves_in_world(armature, action):
     animation = armature.animation_data
     return (armature.parent is not None or len(armature.constraints) > 0
             or (animation is not None and len(animation.drivers) > 0)
-            or any(not fcurve.data_path.startswith("pose.") for fcurve in _fcurves(action)))
+            or any(not fcurve.data_path.startswith("pose.") for fcurve in actions.fcurves(action)))
 
 
 def _joints_of_keyed_bone(rig, bone):
@@ -248,25 +238,18 @@ CONSTRAINT_KINDS = bpy.types.Constraint.bl_rna.properties["type"].enum_items
 def _blame(armature, bone):
     """A phrase naming what moves ``bone`` away from its keys as played: active constraints on it
     or its parents, or drivers on their channels; None when nothing is found."""
-    causes = []
+    causes, chain = [], set()
     pose_bone = armature.pose.bones.get(bone)
     while pose_bone is not None:
+        chain.add(pose_bone.name)
         causes += [f"constraint {c.name!r} ({CONSTRAINT_KINDS[c.type].name}) on {pose_bone.name!r}"
                    for c in pose_bone.constraints if not c.mute and c.influence > 0.0
                    and c.type not in bindings.PATH_CONSTRAINTS]
         pose_bone = pose_bone.parent
     animation = armature.animation_data
     driven = [d.data_path for d in (animation.drivers if animation else ()) if d.data_path.startswith("pose.bones[")]
-    causes += [f"a driver on {path}" for path in driven if path.split('"')[1] in _chain(armature, bone)]
+    causes += [f"a driver on {path}" for path in driven if path.split('"')[1] in chain]
     return ", ".join(causes) or None
-
-
-def _chain(armature, bone):
-    names, data_bone = [], armature.data.bones.get(bone)
-    while data_bone is not None:
-        names.append(data_bone.name)
-        data_bone = data_bone.parent
-    return names
 
 
 class Writer:
