@@ -41,8 +41,10 @@ package: setup
 	$(PY) $(BLENDER_EXT) build --source-dir . --output-dir out
 	$(PY) $(BLENDER_EXT) validate out/trajevae-*.zip
 
+# The whole training, model then sampler (resumable: re-run to continue from the checkpoints).
 train: setup
 	$(PY) -m model_runtime.train
+	$(PY) -m model_runtime.train_sampler
 
 train-sampler: setup
 	$(PY) -m model_runtime.train_sampler

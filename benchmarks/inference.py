@@ -33,7 +33,7 @@ def median_ms(run, repeats):
 def main(samples=10, repeats=30):
     torch.set_num_threads(2)
     model, meta = weights.load_model()
-    clips, _ = dataset.load_clips([dataset.DEFAULT_DATA_ROOT / "cmu_mb_01-09" / "02" / "02_01.bvh"])
+    clips, _ = dataset.load_clips([dataset.DATA_ROOTS[0] / "cmu_mb_01-09" / "02" / "02_01.bvh"])
     window = dataset.windows(clips, future=model.config.frames, stride=1000)[:1]
     initial = torch.from_numpy(window[:, 0])
     print(f"TrajeVAE {meta['parameters']:,} parameters, torch threads {torch.get_num_threads()}")

@@ -26,10 +26,10 @@ def main():
         from model_runtime.data import dataset
 
         start = time.perf_counter()
-        cold, errors = dataset.load_clips([dataset.DEFAULT_DATA_ROOT])
+        cold, errors = dataset.load_clips(dataset.DATA_ROOTS)
         cold_s = time.perf_counter() - start
         start = time.perf_counter()
-        warm, _ = dataset.load_clips([dataset.DEFAULT_DATA_ROOT])
+        warm, _ = dataset.load_clips(dataset.DATA_ROOTS)
         warm_s = time.perf_counter() - start
     frames = sum(clip.frames for clip in warm)
     own, child = peak_mib()

@@ -6,13 +6,13 @@ motions (T, 17, 3), and pin the given joints onto their trajectories.
 
 import numpy as np
 
-from . import augment
+from . import augment, masks
 from .skeleton import facing
 
 
 def pin(motion, trajectories, mask):
-    """Motions (..., T, J, 3) with known joints (mask (T, J)) set to their given positions."""
-    known = mask[..., None] > 0
+    """Motions (..., T, J, 3) with known coordinates (mask (T, J, 3) or (T, J)) set to their given positions."""
+    known = masks.per_coordinate(mask) > 0
     return np.where(known, trajectories, motion)
 
 

@@ -12,6 +12,7 @@ curve and key met exactly (``pin``). Motions are (V, F, 17, 3).
 import numpy as np
 
 from .filters import smooth, smoothstep, window_max, window_min
+from .retarget import steady_across
 from .skeleton import JOINT_INDEX, LIMBS, limb_length
 
 J = JOINT_INDEX
@@ -21,8 +22,10 @@ FEET = ("RFoot", "LFoot")
 # while slow drift up or down is removed.
 FLOOR_WINDOW_S = 0.25
 # An ankle within this height of where it stood at the start is planted: a foot that moves along
-# the floor without lifting is sliding, which an animator never wants.
+# the floor without lifting is sliding, which an animator never wants. One the model predicts
+# planted is held up to MODEL_CONTACT_HEIGHT_M (a planted foot it generated a little above the floor).
 CONTACT_HEIGHT_M = 0.04
+MODEL_CONTACT_HEIGHT_M = 0.10
 # The start of a shot eases out of the rig's pose over this many seconds.
 START_EASE_S = 0.25
 # Around a key, the model's own motion of the keyed joints is replaced by a smooth bridge over this
@@ -121,11 +124,12 @@ def _runs(flags):
     return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1))
 
 
-def _contacts(ankle, fps, standing, free):
-    """Planted frames (F,) of one ankle (F, 3): low, on frames where it is ``free`` (F,) of keys
-    and curves; gaps of a frame or two and shuffles closed, plants under MIN_CONTACT_S dropped."""
+def _contacts(ankle, fps, standing, free, predicted):
+    """Planted frames (F,) of one ankle (F, 3): low, or a little higher where the model predicts it
+    planted (``predicted`` (F,) in [0, 1]), on frames where it is ``free`` (F,) of keys and curves;
+    gaps of a frame or two and shuffles closed, plants under MIN_CONTACT_S dropped."""
     height = ankle[:, 2] - standing
-    planted = (height < CONTACT_HEIGHT_M) & free
+    planted = ((height < CONTACT_HEIGHT_M) | ((predicted > 0.5) & (height < MODEL_CONTACT_HEIGHT_M))) & free
     for start, end in _runs(~planted):
         between = 0 < start and end < len(planted) - 1 and free[start:end + 1].all()
         if between and (end - start < 2 or height[start:end + 1].max() < STEP_LIFT_M):
@@ -136,30 +140,33 @@ def _contacts(ankle, fps, standing, free):
     return planted
 
 
-def heading(motion):
-    """The pelvis's turn about Z since the first frame (V, F), radians, continuous."""
-    across = motion[..., J["LHip"], :2] - motion[..., J["RHip"], :2]
+def heading(motion, initial):
+    """The pelvis's turn about Z since the first frame (V, F), radians, continuous: of the hips'
+    left-right direction steadied as the retarget steadies it (``retarget.steady_across``) from
+    the pose ``initial`` (17, 3), so the feet turn with the pelvis the rig gets."""
+    across = np.stack([steady_across(initial, variant)[0] for variant in motion])
     angle = np.unwrap(np.arctan2(across[..., 1], across[..., 0]), axis=-1)
     return angle - angle[..., :1]
 
 
-def _contact_flags(motion, fps, standing, pinned):
+def _contact_flags(motion, fps, standing, pinned, predicted):
     """Planted frames (V, F, 2) of the right and left ankles (see ``_contacts``)."""
     flags = np.zeros(motion.shape[:2] + (2,), dtype=bool)
     for variant in range(len(motion)):
         for side, foot in enumerate(FEET):
-            flags[variant, :, side] = _contacts(motion[variant, :, J[foot]], fps, standing, pinned[:, J[foot]] == 0)
+            flags[variant, :, side] = _contacts(motion[variant, :, J[foot]], fps, standing, pinned[:, J[foot]] == 0,
+                                                predicted[variant, :, side])
     return flags
 
 
-def without_slide(motion, fps, standing, pinned, initial, targets):
+def without_slide(motion, fps, standing, pinned, initial, targets, predicted):
     """The whole body moved against the slide of its planted feet: while a foot is planted, its
     horizontal drift is the body's, taken out frame by frame (where the hips are not pinned), as
     far as the hands and feet on curves ({joint: (F, 3)}) stay within reach of the body. What
     brings them back within reach is eased over REACH_EASE_S; its upward part raises the body
     above its feet (the legs straighten, up to STAND_SHARE of their length) rather than lifting
-    the feet off the floor."""
-    planted = _contact_flags(motion, fps, standing, pinned)  # (V, F, 2)
+    the feet off the floor. ``predicted`` (V, F, 2): the model's planted feet in [0, 1]."""
+    planted = _contact_flags(motion, fps, standing, pinned, predicted)  # (V, F, 2)
     velocity = np.diff(motion[..., [J[foot] for foot in FEET], :2], axis=1)  # (V, F - 1, 2, 2)
     both = planted[:, 1:] & planted[:, :-1]
     slide = (velocity * both[..., None]).sum(-2) / np.maximum(both.sum(-1), 1)[..., None]  # (V, F - 1, 2)
@@ -237,16 +244,17 @@ def _lift(frames, runs, height):
     return lift
 
 
-def plant_feet(motion, fps, standing, pinned, initial):
+def plant_feet(motion, fps, standing, pinned, initial, predicted):
     """(motion, contacts (V, F, 2), foot turns (V, F, 2)), right foot first: each planted ankle
     held where it landed, on the floor, with its foot's turn about Z as it landed. The hold is an
     additive layer on the foot, eased from plant to plant through the step between, so no pop
     appears where a plant starts or ends. ``pinned`` (F, 17): joints the artist fixed on each
-    frame, which are never planted; ``initial`` (17, 3) gives the legs' lengths."""
+    frame, which are never planted; ``initial`` (17, 3) gives the legs' lengths; ``predicted``
+    (V, F, 2) the model's planted feet in [0, 1]."""
     out = motion.copy()
-    pelvis = heading(motion)
+    pelvis = heading(motion, initial)
     turns = np.repeat(pelvis[..., None], 2, axis=-1)
-    contacts = _contact_flags(motion, fps, standing, pinned)
+    contacts = _contact_flags(motion, fps, standing, pinned, predicted)
     frames = np.arange(motion.shape[1])
     for variant in range(len(motion)):
         for side, foot in enumerate(FEET):
@@ -263,15 +271,26 @@ def plant_feet(motion, fps, standing, pinned, initial):
     return out, contacts, turns
 
 
-def pin(motion, targets, keyed):
-    """Motion with each curve's joint on its target (F, 3) on every frame ({joint: targets}) and
-    each keyed joint on its key ({frame index: {joint: (3,)}}): in place, returned."""
+def pin(motion, targets, axes, keyed):
+    """Motion with each curve's joint on its target (F, 3) on every frame ({joint: targets}), on the
+    coordinates it follows ({joint: (3,) bool}), and each keyed joint on its key ({frame index:
+    {joint: (3,)}}): in place, returned."""
     for index, joints in keyed.items():
         for joint, position in joints.items():
             motion[:, index, J[joint]] = position
     for joint, path in targets.items():
-        motion[:, :, J[joint]] = path
+        for axis in np.flatnonzero(axes[joint]):
+            motion[:, :, J[joint], axis] = path[:, axis]
     return motion
+
+
+def carried_by_hips(motion, targets, axes):
+    """Motion (V, F, 17, 3) moved whole onto its hips' curve (a path on the ground gives x and y
+    only), so the body comes along rather than the hips alone being pinned."""
+    if "Hip" not in targets:
+        return motion
+    shift = (targets["Hip"] - motion[:, :, J["Hip"]]) * axes["Hip"]
+    return motion + shift[:, :, None, :]
 
 
 def pinned_joints(frames, targets, keyed, fps=None):
@@ -289,13 +308,15 @@ def pinned_joints(frames, targets, keyed, fps=None):
     return pinned
 
 
-def tidy(motion, fps, initial, targets, keyed):
+def tidy(motion, fps, initial, targets, axes, keyed, predicted):
     """(motion, contacts (V, F, 2), foot turns (V, F, 2)) of the variants (V, F, 17, 3) at ``fps``
-    from the pose ``initial`` (17, 3): on the floor, eased onto the keys, planted feet still,
-    every curve ({joint: (F, 3)}) and key ({frame index: {joint: (3,)}}) met exactly."""
+    from the pose ``initial`` (17, 3): on the floor, eased onto the keys, planted feet still (those
+    low, or a little higher where the model predicts them planted: ``predicted`` (V, F, 2)),
+    every curve ({joint: (F, 3)}, on its axes {joint: (3,) bool}) and key ({frame index: {joint:
+    (3,)}}) met exactly; a curve of the hips carries the whole body (``carried_by_hips``)."""
     standing = min(initial[J[foot], 2] for foot in FEET)
     on_curves = pinned_joints(motion.shape[1], targets, {})  # keys ease in after the feet are planted
-    motion = on_floor(ease_out_of_start(motion, fps), fps, standing)
-    motion = without_slide(motion, fps, standing, on_curves, initial, targets)
-    motion, contacts, turns = plant_feet(motion, fps, standing, on_curves, initial)
-    return pin(ease_onto_keys(motion, keyed, fps), targets, keyed), contacts, turns
+    motion = on_floor(ease_out_of_start(carried_by_hips(motion, targets, axes), fps), fps, standing)
+    motion = without_slide(motion, fps, standing, on_curves, initial, targets, predicted)
+    motion, contacts, turns = plant_feet(motion, fps, standing, on_curves, initial, predicted)
+    return pin(ease_onto_keys(motion, keyed, fps), targets, axes, keyed), contacts, turns

@@ -11,13 +11,15 @@ contact, m/s); the ground truth's own realism figures are printed beside.
 "ground_truth": {...}, "windows": n, "samples": K, "seconds": s}.
 By default the windows come from the validation subjects; ``--data`` takes
 any BVH files or folders. The nearest-neighbour baseline searches the
-training subjects' windows. "trajevae" draws prior samples as the add-on
-does (with curves, the most plausible of a doubled pool); "sampler" (the
-diverse sampler) runs when its weights exist, at k = 0 only: the add-on
-uses it where nothing is given (with curves it samples the prior, the
-"trajevae" rows), and its pool of 10K draws (5K of the sampler, 5K of the
-prior) would otherwise take most of the run (with 5K sampler draws alone it
-took two thirds; tests/test_sampler.py checks it with curves).
+training subjects' windows. "trajevae" draws plain prior samples (with
+curves, the most plausible of a doubled pool), the paper's way; "sampler" is
+what the add-on ships for every generation: the diverse sampler's and the
+prior's draws (5K each), screened and spread by ``selection`` (it runs when
+the sampler's weights exist). Its pool of 10K draws costs five plain
+samplings, so by default it runs at k = 0 only (``--sampler-k 0 1 2 3 4``
+measures it at every k, in about three times as long). ``--limits`` names the
+joint-angle limits (default: the shipped ones), so models trained on
+different data are measured alike.
 """
 
 import argparse
@@ -41,7 +43,7 @@ REALISM = ("bone_dev", "angle_out", "skating")
 def generate(method, model, neighbours, windows, mask, samples, generator, diverse_sampler=None):
     """Motions (N, K, T, 17, 3) of one method for windows (N, 1 + T, 17, 3) under one mask (T, 17)."""
     initial, future = windows[:, 0], windows[:, 1:]
-    trajectories = future * mask[None, :, :, None]
+    trajectories = future * masks.per_coordinate(mask)
     if method in ("trajevae", "trajevae_mean", "sampler"):
         out = []
         known = torch.from_numpy(np.broadcast_to(mask, (len(windows),) + mask.shape).copy())
@@ -88,10 +90,10 @@ def realism_figures(motions, windows, limits):
 
 
 def evaluate(windows, model, neighbours, samples=50, seed=0, methods=METHODS, diverse_sampler=None,
-             progress=print):
+             progress=print, limits_path=realism.ANGLE_LIMITS, sampler_k=(0,)):
     """{method: {k: {metric: value}}} for windows (N, 1 + T, 17, 3), and the ground truth's realism."""
     generator = torch.Generator().manual_seed(seed)
-    limits = realism.load_angle_limits()
+    limits = realism.load_angle_limits(limits_path)
     groups = metrics.pseudo_truth_groups(metrics.to_protocol(windows[:, 0]))
     frames = windows.shape[1] - 1
     methods = [m for m in methods if m != "sampler" or diverse_sampler is not None]
@@ -99,7 +101,7 @@ def evaluate(windows, model, neighbours, samples=50, seed=0, methods=METHODS, di
     for k in range(len(masks.EVALUATION_ORDER) + 1):
         mask = masks.evaluation_mask(k, frames)
         for method in methods:
-            if method == "sampler" and k > 0:
+            if method == "sampler" and k not in sampler_k:
                 continue
             motions = generate(method, model, neighbours, windows, mask, samples, generator, diverse_sampler)
             results[method][str(k)] = score(motions, windows, mask, groups, limits)
@@ -123,9 +125,11 @@ def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m model_runtime.evaluate", description=__doc__)
     parser.add_argument("--data", nargs="+", help="BVH files or folders (default: the validation subjects)")
     parser.add_argument("--samples", type=int, default=50, help="K samples per condition")
-    parser.add_argument("--stride", type=int, default=15, help="frames between window starts")
+    parser.add_argument("--stride", type=int, default=20, help="frames between window starts")
     parser.add_argument("--weights", default=str(weights.MODEL_WEIGHTS))
     parser.add_argument("--sampler", default=str(weights.SAMPLER_WEIGHTS))
+    parser.add_argument("--limits", default=str(realism.ANGLE_LIMITS), help="joint-angle limits (JSON)")
+    parser.add_argument("--sampler-k", type=int, nargs="+", default=[0], help="k at which the sampler runs")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", help="write the results here as JSON")
     args = parser.parse_args(argv)
@@ -133,7 +137,7 @@ def main(argv=None):
     torch.manual_seed(args.seed)
 
     model, _ = weights.load_model(args.weights)
-    all_clips, _ = dataset.load_clips([dataset.DEFAULT_DATA_ROOT])
+    all_clips, _ = dataset.load_clips(dataset.DATA_ROOTS)
     train_clips, validation_clips = dataset.split_by_subject(all_clips, dataset.read_manifest())
     if args.data:
         eval_clips, errors = dataset.load_clips(args.data)
@@ -151,7 +155,8 @@ def main(argv=None):
     if diverse_sampler is None:
         print(f"no sampler weights at {args.sampler}: method 'sampler' skipped", file=sys.stderr)
     results, truth = evaluate(windows, model, neighbours, args.samples, args.seed,
-                              diverse_sampler=diverse_sampler, progress=lambda line: print(line, flush=True))
+                              diverse_sampler=diverse_sampler, progress=lambda line: print(line, flush=True),
+                              limits_path=args.limits, sampler_k=args.sampler_k)
     seconds = time.time() - started
     print(format_table(results, truth))
     print(f"{len(windows)} windows in {seconds:.1f} s")

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .data.clips import NATIVE_FPS
+from .masks import per_coordinate
 from .skeleton import JOINT_INDEX
 
 # Hip-knee-ankle length of the training subjects (metres, 201 clips: 0.796 to
@@ -71,7 +72,8 @@ def to_scene_rate(motion, scene_frames, fps):
 
 
 def _window(model, initial, trajectories, mask, count, rng, diversity, sampler, continuation=False):
-    """One window for B conditions in the model frame: (B, count, W, 17, 3); inputs (B, ...).
+    """One window for B conditions in the model frame: motions (B, count, W, 17, 3) and planted
+    feet (B, count, W, 2) in [0, 1]; inputs (B, ...).
 
     Known joints come back as the decoder's fit, not pasted: carried frames are cross-faded into
     the new window, and the retarget pins curves and keys exactly afterwards. A ``continuation``
@@ -81,60 +83,85 @@ def _window(model, initial, trajectories, mask, count, rng, diversity, sampler, 
     """
     shift = initial[:, :1].copy()  # (B, 1, 3): root over the floor
     shift[..., 2] = 0.0
-    motion = model.sample(initial - shift, (trajectories - shift[:, None]) * mask[..., None], mask, count, rng,
-                          scale=diversity, sampler=sampler, keep_given=False, screen_given=not continuation,
-                          decoded_only=continuation)
-    return motion + shift[:, None, None]
+    motion, planted = model.sample(initial - shift, (trajectories - shift[:, None]) * mask, mask, count, rng,
+                                   scale=diversity, sampler=sampler, keep_given=False,
+                                   screen_given=not continuation, decoded_only=continuation)
+    return motion + shift[:, None, None], planted
 
 
 def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, sampler=None, overlap=WINDOW_OVERLAP,
              progress=None):
-    """``count`` motions (count, 1 + T, 17, 3) in the model frame, initial pose first.
+    """``count`` motions (count, 1 + T, 17, 3) in the model frame, initial pose first, and how surely
+    each foot is planted on each frame (count, 1 + T, 2) in [0, 1] (the initial frame as the first).
 
-    initial (17, 3); trajectories (T, 17, 3) and mask (T, 17) of the joints
-    given on each frame after the initial one. The first window draws
+    initial (17, 3); trajectories (T, 17, 3) and mask (T, 17, 3) or (T, 17) of
+    the coordinates given on each frame after the initial one. The first window draws
     ``count`` latents (with the diverse sampler when given); later windows
     continue each motion with one prior sample. ``progress(fraction)`` is
     called after each window (it may raise to stop the work).
     """
     window = model.frames
     total = len(trajectories)
+    mask = per_coordinate(mask)
     motion = np.zeros((count, 1 + total, 17, 3), np.float32)
     motion[:, 0] = initial
+    planted = None
     start, done = 0, 0  # window initial frame; frames already generated
     while done < total:
         frames = min(window, total - start)
         given = np.zeros((count, window, 17, 3), np.float32)
-        known = np.zeros((count, window, 17), np.float32)
+        known = np.zeros((count, window, 17, 3), np.float32)
         given[:, :frames] = trajectories[start:start + frames]
         known[:, :frames] = mask[start:start + frames]
         carried = done - start  # frames already generated inside this window
         given[:, :carried] = motion[:, start + 1:done + 1]
         known[:, :carried] = 1.0
         if start == 0:
-            new = _window(model, initial[None], given[:1], known[:1], count, rng, diversity, sampler)[0]
+            new, feet = (part[0] for part in _window(model, initial[None], given[:1], known[:1], count, rng,
+                                                      diversity, sampler))
+            planted = np.zeros((count, 1 + total, feet.shape[-1]), np.float32)
+            planted[:, 0] = feet[:, 0]
         else:
-            new = _window(model, motion[:, start], given, known, 1, rng, diversity, None, continuation=True)[:, 0]
-        fade = np.linspace(0.0, 1.0, carried + 2)[1:-1, None, None]
-        motion[:, start + 1:done + 1] = motion[:, start + 1:done + 1] * (1.0 - fade) + new[:, :carried] * fade
+            new, feet = (part[:, 0] for part in _window(model, motion[:, start], given, known, 1, rng, diversity,
+                                                         None, continuation=True))
+        fade = np.linspace(0.0, 1.0, carried + 2)[1:-1, None]
+        motion[:, start + 1:done + 1] = motion[:, start + 1:done + 1] * (1.0 - fade[..., None]) \
+            + new[:, :carried] * fade[..., None]
+        planted[:, start + 1:done + 1] = planted[:, start + 1:done + 1] * (1.0 - fade) + feet[:, :carried] * fade
         motion[:, done + 1:start + frames + 1] = new[:, carried:frames]
+        planted[:, done + 1:start + frames + 1] = feet[:, carried:frames]
         done = start + frames
         start = done - overlap
         if progress is not None:
             progress(done / total)
-    return motion
+    return motion, planted
 
 
-def curve_samples(points, frames, span, times=None):
+def eased(progress, ease):
+    """Share of the way covered (same shape) at ``progress`` in [0, 1] of the time, with constant
+    acceleration over the first and last ``ease`` of it (a trapezoid of speed), linear for 0."""
+    if ease <= 0.0:
+        return progress
+    ease = min(ease, 0.5)
+    top = 1.0 / (1.0 - ease)  # the cruising speed, in shares of the way per share of the time
+    rest = 1.0 - progress
+    return np.where(progress < ease, top * progress ** 2 / (2 * ease),
+                    np.where(rest < ease, 1.0 - top * rest ** 2 / (2 * ease), top * (progress - ease / 2)))
+
+
+def curve_samples(points, frames, span, times=None, ease=0.0):
     """Positions (1 + frames, 3) along a polyline (P, 3), uniform in arc length, or in drawing
     time when the points' ``times`` (P,) are given.
 
     Frame m sits at fraction min(m / span, 1) of the way: ``span`` (model
-    frames, possibly fractional) is where the scene's last frame falls.
+    frames, possibly fractional) is where the scene's last frame falls. ``ease``
+    (a share of the span, at most 0.5) speeds up from rest over that share at
+    the start and slows to rest over it at the end (a walk starting and
+    stopping), at constant speed between.
     """
     if times is not None:
         lengths = np.asarray(times, dtype=np.float64) - times[0]
     else:
         lengths = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
-    wanted = np.clip(np.arange(frames + 1) / max(span, 1e-9), 0.0, 1.0) * lengths[-1]
+    wanted = eased(np.clip(np.arange(frames + 1) / max(span, 1e-9), 0.0, 1.0), ease) * lengths[-1]
     return np.stack([np.interp(wanted, lengths, points[:, axis]) for axis in range(3)], axis=-1)

@@ -1,9 +1,11 @@
-"""Known-joint masks (T, J): which joint positions are given on which frames.
+"""Known-coordinate masks (T, J, 3): which joint coordinates are given on which frames.
 
 One model serves drawn curves (a joint known on every frame), keyed poses
-(some joints on some frames), end-pose control (the whole last frame) and
+(some joints on some frames), end-pose control (the whole last frame), ground
+paths (the hips' horizontal position only: the model chooses their height) and
 nothing at all (k = 0). Training mixes these families; evaluation uses the
-paper's order of adding trajectories.
+paper's order of adding trajectories. A joint mask (T, J) stands for all three
+coordinates of each joint (``per_coordinate``).
 """
 
 import numpy as np
@@ -12,6 +14,15 @@ from .skeleton import JOINT_INDEX, NUM_JOINTS
 
 EVALUATION_ORDER = ("RFoot", "LFoot", "RWrist", "LWrist")
 BERNOULLI_KEEP = 0.15  # the paper: each joint masked with p = 0.85, for all frames
+
+
+def per_coordinate(mask):
+    """A mask (..., J, 3), numpy or torch; a joint mask (..., J) gives each joint's three coordinates."""
+    if mask.shape[-1] != NUM_JOINTS:
+        return mask
+    if isinstance(mask, np.ndarray):
+        return np.repeat(mask[..., None], 3, axis=-1)
+    return mask[..., None].expand(*mask.shape, 3)
 
 
 def trajectory_mask(joint_names, frames):
@@ -27,25 +38,33 @@ def evaluation_mask(k, frames):
 
 
 def sample_training_masks(batch, frames, rng):
-    """A batch of training masks (B, T, J) drawn from all families."""
-    masks = np.zeros((batch, frames, NUM_JOINTS), dtype=np.float32)
-    family = rng.choice(5, size=batch, p=[0.35, 0.25, 0.15, 0.15, 0.10])
+    """A batch of training masks (B, T, J, 3) drawn from all families."""
+    masks = np.zeros((batch, frames, NUM_JOINTS, 3), dtype=np.float32)
+    family = rng.choice(7, size=batch, p=[0.30, 0.22, 0.13, 0.13, 0.08, 0.10, 0.04])
+    hip = JOINT_INDEX["Hip"]
     for b, kind in enumerate(family):
         mask = masks[b]
         if kind == 0:  # the paper's constant-in-time Bernoulli trajectories
             mask[:, rng.random(NUM_JOINTS) < BERNOULLI_KEEP] = 1.0
         elif kind == 1:  # the evaluation order, sometimes with the root path
-            mask[:] = evaluation_mask(rng.integers(0, len(EVALUATION_ORDER) + 1), frames)
+            mask[:] = per_coordinate(evaluation_mask(rng.integers(0, len(EVALUATION_ORDER) + 1), frames))
             if rng.random() < 0.3:
                 mask[:, JOINT_INDEX["Hip"]] = 1.0
         elif kind == 2:  # sparse keys: a few frames, whole or partial poses
             for frame in rng.choice(frames, size=rng.integers(1, 4), replace=False):
-                mask[frame] = 1.0 if rng.random() < 0.5 else (rng.random(NUM_JOINTS) < 0.5)
+                mask[frame] = 1.0 if rng.random() < 0.5 else (rng.random(NUM_JOINTS) < 0.5)[:, None]
         elif kind == 3:  # end pose, with or without trajectories
             mask[:, rng.random(NUM_JOINTS) < BERNOULLI_KEEP / 2] = 1.0
             mask[-1] = 1.0
-        else:  # joints known on part of the window only
+        elif kind == 4:  # joints known on part of the window only
             for joint in np.flatnonzero(rng.random(NUM_JOINTS) < 0.25):
                 start = rng.integers(0, frames - 1)
                 mask[start: rng.integers(start + 1, frames + 1), joint] = 1.0
+        elif kind == 5:  # a ground path: the hips' horizontal position, sometimes with a hand or foot curve
+            mask[:, hip, :2] = 1.0
+            if rng.random() < 0.3:
+                mask[:, JOINT_INDEX[EVALUATION_ORDER[rng.integers(len(EVALUATION_ORDER))]]] = 1.0
+        else:  # waypoints: the hips' horizontal position on a few frames
+            mask[rng.choice(frames, size=rng.integers(1, 5), replace=False), hip, :2] = 1.0
+            mask[-1, hip, :2] = 1.0
     return masks

@@ -5,8 +5,10 @@ initial root at the ground-plane origin):
 
 - initial pose x0 (B, 17, 3)
 - future poses X (B, T, 17, 3) (training only)
-- known-joint mask M (B, T, 17), 1 where a joint's position is given on a
-  frame (a drawn curve, a key, an end pose). Trajectories are X * M.
+- known-coordinate mask M (B, T, 17, 3), 1 where a joint coordinate is given
+  on a frame (a drawn curve, a key, an end pose, a ground path's horizontal
+  position); a joint mask (B, T, 17) stands for all three coordinates
+  (``masks.per_coordinate``). Trajectories are X * M.
 
 Prior p(z | X*M, M, x0) and posterior q(z | X*(1-M), 1-M, x0) share the frame
 encoder and the first transformers (the paper's design, with the mask given as
@@ -25,6 +27,8 @@ completion stage therefore sees each decoded motion with its known joints
 pinned to their given positions, and moves the other joints by absolute
 displacements, not offsets (``complete``; trained after the rest, which stays
 frozen, on posterior samples' and the prior mean's decodes; see ``train``).
+The decoder also predicts, per frame, whether each foot is planted (logits
+(B, T, 2), right then left; trained on ``contacts.foot_contacts`` labels).
 Native rate: 30 fps; T = 60 (2 s).
 """
 
@@ -35,6 +39,7 @@ import torch
 from torch import nn
 
 from .dct import dct_matrix
+from .masks import per_coordinate
 from .skeleton import NUM_JOINTS
 
 DECODE_CHUNK = 128  # sequences decoded at once
@@ -54,6 +59,17 @@ class ModelConfig:
     decoder_layers: int = 2
     completion_layers: int = 2
     dropout: float = 0.1
+    coordinate_masks: bool = True  # the mask as an input per coordinate (else per joint)
+    contacts: bool = True  # foot contact logits beside the poses
+
+    @property
+    def mask_size(self):
+        """Mask values per frame that the network sees."""
+        return NUM_JOINTS * (3 if self.coordinate_masks else 1)
+
+    @property
+    def contact_size(self):
+        return 2 if self.contacts else 0
 
     def to_dict(self):
         return asdict(self)
@@ -81,13 +97,26 @@ def _sinusoids(length, width):
     return table
 
 
+@dataclass
+class TrainingPass:
+    """What one training pass decodes: poses (B, T, J, 3), contact logits (B, T, C), and the
+    latent distributions (mean, log_var) (B, K, latent)."""
+
+    reconstruction: torch.Tensor  # from a posterior sample
+    contacts: torch.Tensor
+    prior_motion: torch.Tensor  # from a prior sample, as the product draws
+    prior_contacts: torch.Tensor
+    prior: tuple
+    posterior: tuple
+
+
 class TrajeVAE(nn.Module):
     def __init__(self, config=ModelConfig()):
         super().__init__()
         self.config = config
         half = config.width // 2
         coords = NUM_JOINTS * 3
-        self.frame_encoder = _mlp(coords + NUM_JOINTS, half, half)
+        self.frame_encoder = _mlp(coords + config.mask_size, half, half)
         self.pose_encoder = _mlp(coords, half, half)
         self.frame_transformer = _transformer(config, config.frame_layers)
         self.coefficient_transformer = _transformer(config, config.coefficient_layers)
@@ -95,12 +124,12 @@ class TrajeVAE(nn.Module):
         self.posterior_transformer = _transformer(config, config.branch_layers)
         self.prior_head = nn.Linear(config.width, 2 * config.latent)
         self.posterior_head = nn.Linear(config.width, 2 * config.latent)
-        self.decoder_input = _mlp(config.latent + half + half + 2 * coords + NUM_JOINTS, config.width,
+        self.decoder_input = _mlp(config.latent + half + half + 2 * coords + config.mask_size, config.width,
                                   config.width, final_norm=False)
         self.decoder_transformer = _transformer(config, config.decoder_layers)
         self.decoder_output = nn.Sequential(nn.Linear(config.width, config.width), nn.LeakyReLU(0.1),
-                                            nn.Linear(config.width, coords))
-        self.completion_input = _mlp(2 * coords + NUM_JOINTS, config.width, config.width, final_norm=False)
+                                            nn.Linear(config.width, coords + config.contact_size))
+        self.completion_input = _mlp(2 * coords + config.mask_size, config.width, config.width, final_norm=False)
         self.completion_transformer = _transformer(config, config.completion_layers)
         self.completion_output = nn.Linear(config.width, coords)
         for layer in (self.decoder_output[-1], self.prior_head, self.posterior_head, self.completion_output):
@@ -111,10 +140,13 @@ class TrajeVAE(nn.Module):
         self.register_buffer("time_code", _sinusoids(config.frames, config.width), persistent=False)
         self.register_buffer("coefficient_code", _sinusoids(config.dct_keep, config.width), persistent=False)
 
+    def _mask_input(self, mask):
+        """The mask (B, T, J, 3) as the network sees it: (B, T, mask_size)."""
+        return mask.flatten(2) if self.config.coordinate_masks else mask[..., 0]
+
     def _frame_codes(self, values, mask):
-        """Per-frame codes (B, T, W/2) of masked positions (B, T, J, 3) and their mask (B, T, J)."""
-        flat = (values * mask[..., None]).flatten(2)
-        return self.frame_encoder(torch.cat([flat, mask], dim=-1))
+        """Per-frame codes (B, T, W/2) of masked positions (B, T, J, 3) and their mask (B, T, J, 3)."""
+        return self.frame_encoder(torch.cat([(values * mask).flatten(2), self._mask_input(mask)], dim=-1))
 
     def _distribution(self, frame_codes, pose_code, branch, head):
         """Mean and log-variance (B, K, latent) of z from per-frame codes."""
@@ -132,10 +164,11 @@ class TrajeVAE(nn.Module):
 
     def _prior(self, initial, trajectories, mask):
         """``prior``'s three results and the initial pose's code (B, W/2), which the posterior shares."""
+        mask = per_coordinate(mask)
         pose_code = self.pose_encoder(initial.flatten(1))
         condition = self._frame_codes(trajectories, mask)
         mean, log_var = self._distribution(condition, pose_code, self.prior_transformer, self.prior_head)
-        given = self.given_steps(initial, trajectories, mask)
+        given = torch.cat([self.given_steps(initial, trajectories, mask), self._mask_input(mask)], dim=-1)
         frames = torch.cat([condition, pose_code[:, None].expand(-1, condition.shape[1], -1), given], dim=-1)
         first = self.decoder_input[0]
         condition_term = nn.functional.linear(frames, first.weight[:, self.config.latent:], first.bias)
@@ -144,44 +177,54 @@ class TrajeVAE(nn.Module):
 
     def posterior(self, initial, future, mask, pose_code):
         """q(z | future poses with the known joints hidden): (mean, log_var)."""
-        codes = self._frame_codes(future, 1.0 - mask)
+        codes = self._frame_codes(future, 1.0 - per_coordinate(mask))
         return self._distribution(codes, pose_code, self.posterior_transformer, self.posterior_head)
 
     @staticmethod
     def given_steps(initial, trajectories, mask):
-        """Known joints relative to x0 and their steps from the previous frame: (B, T, 2 * J * 3 + J).
+        """Known coordinates relative to x0 and their steps from the previous frame: (B, T, 2 * J * 3),
+        for a mask (B, T, J, 3).
 
         Unknown entries are zero; x0 counts as known before the first frame.
         """
-        relative = (trajectories - initial[:, None]) * mask[..., None]
+        relative = (trajectories - initial[:, None]) * mask
         before = torch.cat([torch.zeros_like(relative[:, :1]), relative[:, :-1]], dim=1)
         known_before = torch.cat([torch.ones_like(mask[:, :1]), mask[:, :-1]], dim=1)
-        steps = (relative - before) * (mask * known_before)[..., None]
-        return torch.cat([relative.flatten(2), steps.flatten(2), mask], dim=-1)
+        steps = (relative - before) * (mask * known_before)
+        return torch.cat([relative.flatten(2), steps.flatten(2)], dim=-1)
 
     def decode(self, z, encoded):
-        """Poses (B, T, J, 3) from latents (B, K, latent) and the encoded condition of ``prior``.
+        """Poses (B, T, J, 3) and foot contact logits (B, T, contact_size) from latents (B, K, latent)
+        and the encoded condition of ``prior``.
 
         The condition's share of the decoder's first layer comes with ``encoded``, computed once per
         condition rather than once per sample. Large batches go in chunks (``_in_chunks``).
         """
-        return _in_chunks(self._decode, z, *encoded)
+        decoded = _in_chunks(self._decode, z, *encoded)
+        coords = NUM_JOINTS * 3
+        return decoded[..., :coords].unflatten(-1, (NUM_JOINTS, 3)), decoded[..., coords:]
 
     def _decode(self, z, initial, condition_term, steps):
-        """``decode`` for one chunk, the encoded condition unpacked."""
+        """``decode`` for one chunk, the encoded condition unpacked: poses and logits as (B, T, J * 3 + C)."""
         in_time = torch.einsum("kt,bkl->btl", self.dct, z)
         first = nn.functional.linear(in_time, self.decoder_input[0].weight[:, :self.config.latent]) + condition_term
         hidden = self.decoder_transformer(self.decoder_input[1:](first) + self.time_code)
-        offsets = self.decoder_output(hidden).view(*hidden.shape[:2], NUM_JOINTS, 3) + steps
-        return initial[:, None] + torch.cumsum(offsets, dim=1)
+        output = self.decoder_output(hidden)
+        coords = NUM_JOINTS * 3
+        poses = initial.flatten(1)[:, None] + torch.cumsum(output[..., :coords] + steps.flatten(2), dim=1)
+        return torch.cat([poses, output[..., coords:]], dim=-1)
 
     def forward(self, initial, future, mask):
-        """Training pass: (reconstruction (B, T, J, 3), prior (mean, log_var), posterior (mean, log_var))."""
-        prior_mean, prior_log_var, encoded, pose_code = self._prior(initial, future * mask[..., None], mask)
+        """Training pass: a ``TrainingPass`` (a posterior sample's reconstruction and a prior sample,
+        each with its contact logits, in one decoder batch)."""
+        prior_mean, prior_log_var, encoded, pose_code = self._prior(initial, future * per_coordinate(mask), mask)
         post_mean, post_log_var = self.posterior(initial, future, mask, pose_code)
-        z = post_mean + torch.randn_like(post_mean) * torch.exp(0.5 * post_log_var)
-        return (self.decode(z, encoded),
-                (prior_mean, prior_log_var), (post_mean, post_log_var))
+        z = torch.cat([post_mean + torch.randn_like(post_mean) * torch.exp(0.5 * post_log_var),
+                       prior_mean + torch.randn_like(prior_mean) * torch.exp(0.5 * prior_log_var)])
+        motion, contacts = self.decode(z, tuple(torch.cat([part, part]) for part in encoded))
+        (reconstruction, prior_motion), (contacts, prior_contacts) = motion.chunk(2), contacts.chunk(2)
+        return TrainingPass(reconstruction, contacts, prior_motion, prior_contacts,
+                            (prior_mean, prior_log_var), (post_mean, post_log_var))
 
     def complete(self, motion, initial, trajectories, mask, keep_given=True):
         """Decoded samples (B, count, T, J, 3) through the completion stage, for conditions (B, ...).
@@ -191,16 +234,17 @@ class TrajeVAE(nn.Module):
         joints. ``keep_given`` returns known joints as given, else as decoded (their own close fit).
         Sequences go in chunks (``_in_chunks``), as in ``decode``.
         """
+        mask = per_coordinate(mask)
         pinned = with_given_joints(motion, trajectories, mask)
         count = motion.shape[1]
-        initial, known = initial.repeat_interleave(count, 0), mask.repeat_interleave(count, 0)
+        initial, known = initial.repeat_interleave(count, 0), self._mask_input(mask).repeat_interleave(count, 0)
         frames = torch.cat([(pinned.flatten(0, 1) - initial[:, None]).flatten(2),
                             initial.flatten(1)[:, None].expand(-1, known.shape[1], -1), known], dim=-1)
         displacement = _in_chunks(self._displacement, frames).view(motion.shape)
-        return (pinned if keep_given else motion) + displacement * (1.0 - mask[:, None, ..., None])
+        return (pinned if keep_given else motion) + displacement * (1.0 - mask[:, None])
 
     def _displacement(self, frames):
-        """The completion stage's displacements (N, T, J * 3) from its per-frame inputs (N, T, 2 * J * 3 + J)."""
+        """The completion stage's displacements (N, T, J * 3) from its per-frame inputs (N, T, 2 * J * 3 + mask_size)."""
         hidden = self.completion_transformer(self.completion_input(frames) + self.time_code)
         return self.completion_output(hidden)
 
@@ -219,7 +263,7 @@ class TrajeVAE(nn.Module):
         mean, std = prior_mean.repeat_interleave(count, 0), torch.exp(0.5 * prior_log_var).repeat_interleave(count, 0)
         noise = torch.zeros_like(mean) if use_mean else torch.randn(
             mean.shape, generator=generator, dtype=mean.dtype)
-        motion = self.decode(mean + scale * std * noise, repeat_encoded(encoded, count))
+        motion = self.decode(mean + scale * std * noise, repeat_encoded(encoded, count))[0]
         motion = motion.view(initial.shape[0], count, *motion.shape[1:])
         return motion if decoded_only else self.complete(motion, initial, trajectories, mask, keep_given)
 
@@ -233,13 +277,14 @@ def _in_chunks(function, *tensors):
 
 
 def with_given_joints(motion, trajectories, mask):
-    """Samples (B, count, T, J, 3) with the known joints set to their given positions (B, T, J, 3).
+    """Samples (B, count, T, J, 3) with the known coordinates (mask (B, T, J, 3) or (B, T, J)) set to
+    their given positions (B, T, J, 3).
 
     Pose completion: what was given is kept as given, as every baseline does; the decoder already
     brings the rest of the body along (its residual there is a few centimetres), and
     ``TrajeVAE.complete`` fits the rest to what is pinned.
     """
-    return torch.where(mask[:, None, ..., None] > 0, trajectories[:, None], motion)
+    return torch.where(per_coordinate(mask)[:, None] > 0, trajectories[:, None], motion)
 
 
 def repeat_encoded(encoded, count):

@@ -15,8 +15,8 @@ ATTRIBUTION = """- The data used in this project was obtained from mocap.cs.cmu.
 - Motion capture data from The Ohio State University ACCAD Open Motion Project (CC BY 3.0)."""
 
 
-def render(meta, evaluation):
-    config, train = meta["config"], meta["train"]
+def table(evaluation):
+    """The evaluation as a Markdown table, the ground truth's realism last."""
     rows = ["| method | k | " + " | ".join(METRICS) + " |", "|---|---|" + "---|" * len(METRICS)]
     for method, entry in evaluation["methods"].items():
         for k, row in entry["k"].items():
@@ -24,28 +24,41 @@ def render(meta, evaluation):
                 "-" if row[m] is None else f"{row[m]:.3f}" for m in METRICS) + " |")
     truth = evaluation.get("ground_truth", {})
     rows.append("| ground truth | | " + " | ".join(f"{truth[m]:.3f}" if m in truth else "" for m in METRICS) + " |")
+    return "\n".join(rows)
+
+
+def render(meta, evaluation, before=None):
+    config, train = meta["config"], meta["train"]
+    previous = "" if before is None else f"""
+### The previous model, measured the same way
+{before.get('label', 'Before')}: {before['windows']} windows, K = {before.get('samples', 50)}, run in {before['seconds']:.0f} s.
+
+{table(before)}
+"""
     return f"""# TrajeVAE model card
 
 Pose completion for motion from trajectories (Kania, Kowalski, Trzcinski), scaled
 for the CPU. File: `assets/trajevae.npz` (plain arrays and a JSON config; no pickled
-code). Reproduce with `python -m model_runtime.train`.
+code). Reproduce with `python -m model_runtime.train` (then `python -m model_runtime.train_sampler`).
 
 ## What it does
-Given an initial pose and any joints known on any frames (drawn curves, keys, an end
-pose, or nothing), it samples full-body motions of {config['frames']} frames at
-{clips.NATIVE_FPS} fps (2 s), metres, Z up, initial root at the ground-plane origin.
-Beyond the paper: the known-joint mask is an input (a zero coordinate is ambiguous),
-training masks vary over time as well as joints (keys, end poses, partial curves), and
-the decoder also sees, uncompressed, the known joints relative to the initial pose and
-their per-frame steps, so given curves are followed closely. A bone-length loss keeps
-limbs rigid. Samples keep the known joints exactly as given (pose completion; every
-baseline below does the same), and a completion stage, trained after the rest, moves
-the other joints to fit what is given (absolute displacements from the decoded motion
-with the given joints pinned).
+Given an initial pose and any joint coordinates known on any frames (drawn curves, keys,
+an end pose, a ground path's horizontal positions, or nothing), it samples full-body
+motions of {config['frames']} frames at {clips.NATIVE_FPS} fps (2 s), metres, Z up, initial root at
+the ground-plane origin, and says on each frame which feet are planted.
+Beyond the paper: the known-coordinate mask is an input (a zero coordinate is ambiguous),
+training masks vary over time as well as joints (keys, end poses, partial curves, ground
+paths and waypoints of the hips), and the decoder also sees, uncompressed, the known
+coordinates relative to the initial pose and their per-frame steps, so given curves are
+followed closely. Samples keep the known coordinates exactly as given (pose completion;
+every baseline below does the same), and a completion stage, trained after the rest,
+moves the other joints to fit what is given (absolute displacements from the decoded
+motion with the given joints pinned).
 
 ## Data
-Real optical motion capture in ../shared/mocap (CMU and ACCAD), 17 canonical joints.
-Validation subjects, never trained on: {', '.join(meta['validation_subjects'])}.
+Real optical motion capture in ../shared/mocap and ../shared/mocap-extra (CMU and ACCAD),
+17 canonical joints; 57 minutes, 24 subjects. Validation subjects, never trained on:
+{', '.join(meta['validation_subjects'])} (everyday motion, walks, martial arts).
 Model selection used the validation subjects only (best-of-10 ADE of prior samples
 over the evaluation masks k = 0..4).
 
@@ -55,16 +68,23 @@ over the evaluation masks k = 0..4).
 {json.dumps(config, indent=1)}
 
 Parameters: {meta['parameters']:,}. Training: {train['steps']} steps planned, batch
-{train['batch']}, Adam (lr {train['learning_rate']}, warm-up then cosine cycles of {train['cycle']} steps
-with warm restarts at {train['restart_peak']} x the previous peak), beta
-{train['beta']}, bone-length weight {train['bone_weight']}, random turns about Z and
-mirroring, seed {train['seed']}; masks mix the paper's Bernoulli trajectories
-(p = 0.85 masked), the evaluation order, sparse keys, end poses and partial curves.
+{train['batch']}, Adam (lr {train['learning_rate']}, warm-up then cosine cycles of {train['cycle']} steps),
+beta {train['beta']}, random turns about Z and mirroring, seed {train['seed']}; masks mix the
+paper's Bernoulli trajectories (p = 0.85 masked), the evaluation order, sparse keys, end
+poses, partial curves, ground paths and waypoints. {train['rest_start_share']:.0%} of the windows whose first
+pose stands start from a rest pose of their own skeleton (T to A, arms 0-50 degrees down)
+and turn into the capture over 15-30 frames, as rigs start in the add-on. Losses: the
+paper's (squared error, KL) plus foot contacts (cross-entropy of the predicted contacts
+against labels from the capture's sole height and ankle speed, weight {train['contact_weight']}) and
+GSPS realism on the reconstruction and, at {train['prior_realism_share']} x, on one prior sample per window:
+bone lengths ({train['bone_weight']}), joint-angle limits fitted on the training poses ({train['angle_weight']}),
+squared speed of planted feet ({train['skating_weight']}; the prior sample's own predicted contacts)
+and ankles below the window's floor ({train['floor_weight']}).
 Then the second stage: the completion stage alone ({config['completion_layers']} transformer layers) for
 {train['completion_steps']} steps (lr {train['completion_learning_rate']}, warm-up then one cosine decay, seed
 {train['seed']} + 1), on the frozen first stage's decodes of posterior samples and, for
 {train['completion_mean_share']:.0%} of each batch, of the prior mean (squared error of the root and of the
-body relative to it, plus bone lengths). Best checkpoint at step {meta['step']} after
+body relative to it, plus the realism terms). Best checkpoint at step {meta['step']} after
 {meta['training_minutes']:.0f} minutes on 2 CPU cores ({meta['first_stage_minutes']:.0f} for the first stage); validation
 best-of-10 ADE {meta['validation_ade_m']:.4f} m.
 
@@ -75,28 +95,30 @@ ground truths), traj_err = mean distance of conditioned joints to their trajecto
 MPD = minimum pairwise distance among the K samples; realism: bone_dev = mean rigid
 bone-length deviation from the initial pose (m), angle_out = share of frames outside
 the joint-angle limits fitted on the training poses, skating = mean horizontal foot
-speed while the foot is within 5 cm of the floor (m/s). "trajevae" samples the prior as
-the add-on does: with trajectories given, the {selection.GIVEN_POOL_FACTOR}K draws' most plausible half (least
-bone stretch and straying from the trajectories). "sampler" is the diverse
-Gumbel-softmax sampler over the frozen model (assets/sampler.npz), its K variants
+speed while the foot is within 5 cm of the floor (m/s). "trajevae" samples the prior:
+with trajectories given, the {selection.GIVEN_POOL_FACTOR}K draws' most plausible half (least
+bone stretch and straying from the trajectories). "sampler" is what the add-on ships: the
+diverse Gumbel-softmax sampler over the frozen model (assets/sampler.npz), its K variants
 picked from a pool of {selection.POOL_FACTOR}K sampler draws and {selection.PRIOR_POOL_FACTOR}K prior draws (the least
 plausible {selection.SCREENED_SHARE:.0%} dropped, then the widest spacing that typical-first picking
-allows), evaluated at k = 0, where the add-on uses it.
+allows).
 k = number of trajectories given, in the order RFoot, LFoot, RWrist, LWrist.
 Run in {evaluation['seconds']:.0f} s with `python -m model_runtime.evaluate`.
 
-{chr(10).join(rows)}
-"""
+{table(evaluation)}
+{previous}"""
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m model_runtime.model_card")
     parser.add_argument("evaluation", help="JSON written by model_runtime.evaluate --json")
     parser.add_argument("--out", default=str(weights.ASSETS / "MODEL_CARD.md"))
+    parser.add_argument("--before", help="an earlier model's evaluation JSON, shown beside (its 'label' says which)")
     args = parser.parse_args(argv)
     _, meta = weights.load_model()
     evaluation = json.loads(Path(args.evaluation).read_text())
-    Path(args.out).write_text(render(meta, evaluation))
+    before = json.loads(Path(args.before).read_text()) if args.before else None
+    Path(args.out).write_text(render(meta, evaluation, before))
     print(f"wrote {args.out}")
     return 0
 

@@ -16,6 +16,7 @@ import numpy as np
 
 from . import selection
 from .dct import dct_matrix
+from .masks import per_coordinate
 from .skeleton import NUM_JOINTS
 
 REINSTALL = "reinstall the TrajeVAE extension"
@@ -137,45 +138,54 @@ class NumpyTrajeVAE:
         arrays["decoder_input.0.weight_latent"] = np.ascontiguousarray(first[:, :latent])
         arrays["decoder_input.0.weight_condition"] = np.ascontiguousarray(first[:, latent:])
         self.weights = _Weights(arrays)
+        self.coordinate_masks = self.config.get("coordinate_masks", False)  # older files: a per-joint mask
         self.frames, width = self.config["frames"], self.config["width"]
         self.dct = dct_matrix(self.frames)[: self.config["dct_keep"]].astype(np.float32)
         self.time_code = _sinusoids(self.frames, width)
         self.coefficient_code = _sinusoids(self.config["dct_keep"], width)
 
+    def _mask_input(self, mask):
+        """As ``model.TrajeVAE._mask_input``: (B, T, J, 3) -> (B, T, mask_size)."""
+        return mask.reshape(*mask.shape[:2], -1) if self.coordinate_masks else mask[..., 0]
+
     def prior(self, initial, trajectories, mask):
         """(mean, log_var) (B, K, latent) and the encoded condition, for initial (B, 17, 3),
-        trajectories (B, T, 17, 3) and mask (B, T, 17)."""
+        trajectories (B, T, 17, 3) and mask (B, T, 17, 3) or (B, T, 17)."""
         w, heads = self.weights, self.config["heads"]
+        mask = per_coordinate(mask)
         pose_code = w.mlp("pose_encoder", initial.reshape(len(initial), -1).astype(np.float32))
-        flat = (trajectories * mask[..., None]).reshape(*mask.shape[:2], -1)
-        condition = w.mlp("frame_encoder", np.concatenate([flat, mask], -1).astype(np.float32))
+        flat = (trajectories * mask).reshape(*mask.shape[:2], -1)
+        condition = w.mlp("frame_encoder", np.concatenate([flat, self._mask_input(mask)], -1).astype(np.float32))
         tokens = np.concatenate([condition, np.broadcast_to(pose_code[:, None], condition.shape)], -1)
         tokens = w.transformer("frame_transformer", tokens + self.time_code, heads)
         coefficients = self.dct @ tokens  # (K, T) @ (B, T, W)
         coefficients = w.transformer("coefficient_transformer", coefficients + self.coefficient_code, heads)
         out = w.linear("prior_head", w.transformer("prior_transformer", coefficients, heads))
         mean, log_var = np.split(out, 2, axis=-1)
-        given = _given_steps(initial, trajectories, mask)
+        given = np.concatenate([_given_steps(initial, trajectories, mask), self._mask_input(mask)], -1)
         frames = np.concatenate([condition, np.broadcast_to(pose_code[:, None], condition.shape), given], -1)
         condition_term = w.linear("decoder_input.0", frames.astype(np.float32), ".weight_condition")
         steps = given[..., NUM_JOINTS * 3:NUM_JOINTS * 6].reshape(*mask.shape[:2], NUM_JOINTS, 3)
         return mean, np.clip(log_var, -10.0, 10.0), (initial, condition_term, steps)
 
     def decode(self, z, encoded):
-        """Poses (B, T, 17, 3) from latents (B, K, latent) and the encoded condition of ``prior``
-        (which carries the condition's share of the first layer, as in ``model.TrajeVAE.decode``)."""
+        """Poses (B, T, 17, 3) and foot contact logits (B, T, C) from latents (B, K, latent) and the
+        encoded condition of ``prior`` (which carries the condition's share of the first layer, as in
+        ``model.TrajeVAE.decode``)."""
         w = self.weights
         initial, condition_term, steps = encoded
         in_time = self.dct.T @ z.astype(np.float32)  # (T, K) @ (B, K, latent)
         first = w.linear("decoder_input.0", in_time, ".weight_latent", bias=None) + condition_term
         first = w.linear("decoder_input.3", _leaky(w.layer_norm("decoder_input.1", first)))
         hidden = w.transformer("decoder_transformer", first + self.time_code, self.config["heads"])
-        offsets = w.linear("decoder_output.2", _leaky(w.linear("decoder_output.0", hidden)))
-        return initial[:, None] + np.cumsum(offsets.reshape(*hidden.shape[:2], NUM_JOINTS, 3) + steps, axis=1)
+        output = w.linear("decoder_output.2", _leaky(w.linear("decoder_output.0", hidden)))
+        offsets = output[..., :NUM_JOINTS * 3].reshape(*hidden.shape[:2], NUM_JOINTS, 3)
+        return initial[:, None] + np.cumsum(offsets + steps, axis=1), output[..., NUM_JOINTS * 3:]
 
     def sample(self, initial, trajectories, mask, count, rng, scale=1.0, sampler=None, keep_given=True,
                screen_given=True, decoded_only=False):
-        """``count`` motions per condition (B, count, T, 17, 3): prior samples (where joints are given,
+        """``count`` motions per condition (B, count, T, 17, 3) and how surely each foot is planted on
+        each frame (B, count, T, 2) in [0, 1], right then left: prior samples (where joints are given,
         the most plausible of a larger pool), or with the diverse sampler given, distinct plausible
         ones from a pool of its draws and the prior's; see ``selection``.
 
@@ -185,6 +195,7 @@ class NumpyTrajeVAE:
         ``screen_given`` False draws plain prior samples even where joints are given (a motion's
         continuation, which follows its own carried frames, at half the cost).
         """
+        mask = per_coordinate(mask)
         mean, log_var, encoded = self.prior(initial, trajectories, mask)
         screened = mask.reshape(len(mask), -1).any(axis=1) & screen_given
         if sampler is not None:
@@ -196,31 +207,37 @@ class NumpyTrajeVAE:
             draws = selection.GIVEN_POOL_FACTOR * count if screened.any() else count
             z = self._prior_latents(mean, log_var, draws, rng, scale)
         encoded = tuple(np.repeat(part, draws, axis=0) for part in encoded)
-        motion = self.decode(z.reshape(-1, *mean.shape[1:]), encoded).reshape(len(initial), draws, -1, NUM_JOINTS, 3)
+        motion, logits = self.decode(z.reshape(-1, *mean.shape[1:]), encoded)
+        motion = motion.reshape(len(initial), draws, -1, NUM_JOINTS, 3)
+        planted = (1.0 / (1.0 + np.exp(-logits))).reshape(len(initial), draws, motion.shape[2], -1)
         if not decoded_only:  # screened as completed, with the known joints as decoded (``selection``)
             motion = self.complete(motion, initial, trajectories, mask, keep_given=False)
         if sampler is not None:
-            motion = np.stack([m[selection.distinct_plausible(m, i, count, t, k)]
-                               for m, i, t, k in zip(motion, initial, trajectories, mask)])
-        elif draws > count:
-            motion = np.stack([m[selection.most_plausible(m, i, count, t, k) if s else np.arange(count)]
-                               for m, i, t, k, s in zip(motion, initial, trajectories, mask, screened)])
-        return _with_given_joints(motion, trajectories, mask) if keep_given else motion
+            chosen = [selection.distinct_plausible(m, i, count, t, k)
+                      for m, i, t, k in zip(motion, initial, trajectories, mask)]
+        else:
+            chosen = [selection.most_plausible(m, i, count, t, k) if s and draws > count else np.arange(count)
+                      for m, i, t, k, s in zip(motion, initial, trajectories, mask, screened)]
+        motion = np.stack([m[c] for m, c in zip(motion, chosen)])
+        planted = np.stack([p[c] for p, c in zip(planted, chosen)])
+        return (_with_given_joints(motion, trajectories, mask) if keep_given else motion), planted
 
     def complete(self, motion, initial, trajectories, mask, keep_given=True):
         """Decoded motions (B, count, T, 17, 3) through the completion stage, as ``model.TrajeVAE.complete``."""
         w = self.weights
+        mask = per_coordinate(mask)
         pinned = _with_given_joints(motion, trajectories, mask)
         count, frames = motion.shape[1], mask.shape[1]
         relative = (pinned - initial[:, None, None]).reshape(len(motion), count, frames, -1)
         pose = np.broadcast_to(initial.reshape(len(motion), 1, 1, -1), relative.shape)
-        known = np.broadcast_to(mask[:, None], (len(motion), count) + mask.shape[1:])
+        joint_known = self._mask_input(mask)
+        known = np.broadcast_to(joint_known[:, None], (len(motion), count) + joint_known.shape[1:])
         hidden = w.mlp("completion_input", np.concatenate([relative, pose, known], -1).astype(np.float32),
                        final_norm=False)
         hidden = w.transformer("completion_transformer", hidden.reshape(-1, frames, hidden.shape[-1]) + self.time_code,
                                self.config["heads"])
         displacement = w.linear("completion_output", hidden).reshape(motion.shape)
-        return (pinned if keep_given else motion) + displacement * (1.0 - mask[:, None, ..., None])
+        return (pinned if keep_given else motion) + displacement * (1.0 - mask[:, None])
 
     @staticmethod
     def _prior_latents(mean, log_var, count, rng, scale):
@@ -230,18 +247,18 @@ class NumpyTrajeVAE:
 
 
 def _with_given_joints(motion, trajectories, mask):
-    """As ``model.with_given_joints``: motion (B, count, T, 17, 3) with the known joints set to the
-    given positions (B, T, 17, 3)."""
-    return np.where(mask[:, None, ..., None] > 0, trajectories[:, None], motion)
+    """As ``model.with_given_joints``: motion (B, count, T, 17, 3) with the known coordinates
+    (mask (B, T, 17, 3)) set to the given positions (B, T, 17, 3)."""
+    return np.where(mask[:, None] > 0, trajectories[:, None], motion)
 
 
 def _given_steps(initial, trajectories, mask):
-    """As ``TrajeVAE.given_steps``: (B, T, 2 * 17 * 3 + 17)."""
-    relative = (trajectories - initial[:, None]) * mask[..., None]
+    """As ``TrajeVAE.given_steps``: (B, T, 2 * 17 * 3), for a mask (B, T, 17, 3)."""
+    relative = (trajectories - initial[:, None]) * mask
     before = np.concatenate([np.zeros_like(relative[:, :1]), relative[:, :-1]], axis=1)
     known_before = np.concatenate([np.ones_like(mask[:, :1]), mask[:, :-1]], axis=1)
-    steps = (relative - before) * (mask * known_before)[..., None]
-    return np.concatenate([relative.reshape(*mask.shape[:2], -1), steps.reshape(*mask.shape[:2], -1), mask], -1)
+    steps = (relative - before) * (mask * known_before)
+    return np.concatenate([relative.reshape(*mask.shape[:2], -1), steps.reshape(*mask.shape[:2], -1)], -1)
 
 
 class NumpySampler:

@@ -24,7 +24,8 @@ ANGLE_NAMES = (
 
 
 def _norm(v):
-    return torch.sqrt((v * v).sum(0)).clamp_min(1e-8)
+    """Length over the leading axis, with a finite gradient at zero (a straight knee's hinge axis)."""
+    return torch.sqrt((v * v).sum(0) + 1e-16)
 
 
 def _cos(a, b):
@@ -99,14 +100,21 @@ def bone_length_deviation(motion, initial):
     return float(np.abs(lengths - rest[..., None, :]).mean())  # lengths, not poses, in float64: 10x less copying
 
 
-def skating_loss(motion, fps, contact_m=FLOOR_CONTACT_M, softness_m=0.01):
-    """Differentiable ``foot_skating``: mean squared horizontal ankle speed ((m/s)^2) weighted by a
-    soft contact (sigmoid of the height above the lowest ankle height) for motion (..., T, 17, 3)."""
-    feet = motion[..., indices(FEET), :]
-    speed = torch.linalg.norm(torch.diff(feet[..., :2], dim=-3), dim=-1) * fps
-    lowest = feet[..., 2].amin(dim=-2, keepdim=True).detach()
-    contact = torch.sigmoid((lowest + contact_m - feet[..., 1:, :, 2]) / softness_m)
-    return (contact * speed ** 2).sum() / contact.sum().clamp_min(1e-6)
+def planted_skating_loss(motion, initial, planted, fps):
+    """Squared horizontal speed ((m/s)^2) of planted feet, summed over frames and feet: (B, ...) for
+    motions (B, ..., T, 17, 3) after initial poses (B, 17, 3), ``planted`` (B, ..., T, 2) weights in
+    [0, 1] (right, left; labels, or the model's own contact predictions)."""
+    feet = indices(FEET)
+    start = initial[:, feet].reshape(len(initial), *(1,) * (motion.ndim - 3), 2, 3).expand(*motion.shape[:-3], 1, 2, 3)
+    ankles = torch.cat([start, motion[..., feet, :]], dim=-3)
+    speed = (torch.diff(ankles[..., :2], dim=-3) ** 2).sum(-1) * fps ** 2
+    return (planted * speed).flatten(-2).sum(-1)
+
+
+def floor_loss(motion, floor):
+    """Squared depth of ankles below ``floor`` (B, ..., 1, 2) (per foot), summed over frames and feet:
+    (B, ...) for motions (B, ..., T, 17, 3)."""
+    return (torch.relu(floor - motion[..., indices(FEET), 2]) ** 2).flatten(-2).sum(-1)
 
 
 def foot_skating(motion, fps, contact_m=FLOOR_CONTACT_M):

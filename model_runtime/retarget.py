@@ -144,7 +144,7 @@ def joint_deltas(rig, targets, pinned=None, foot_turns=None):
 
     across = lambda pose, l, r: pose[..., J[l], :] - pose[..., J[r], :]
     up = lambda pose: pose[..., J["Thorax"], :] - pose[..., J["Hip"], :]
-    hips, shoulders = _steady_across(start, targets, pinned)
+    hips, shoulders = steady_across(start, targets, pinned)
     pelvis = frame(hips, up(targets)) @ frame(  # the hips exactly, then the lean
         across(start, "LHip", "RHip"), up(start)).T
     free = np.ones(len(targets)) if pinned is None else 1.0 - pinned[:, J["Hip"]]
@@ -170,7 +170,7 @@ def joint_deltas(rig, targets, pinned=None, foot_turns=None):
     return deltas
 
 
-def _steady_across(start, targets, pinned=None):
+def steady_across(start, targets, pinned=None):
     """(hips, shoulders) left-right directions (F, 3) of targets (F, 17, 3). Where generated hips
     (or shoulders) lie closer together than ACROSS_TRUST of the rig's width their direction is
     noise that spun the pelvis by over 100 degrees in a frame, so the other pair's direction takes

@@ -102,7 +102,7 @@ def sample_motions(model, sampler, initial, trajectories, mask, count, generator
     prior_z = prior_mean[:, None] + torch.exp(0.5 * prior_log_var)[:, None] * noise
     z = torch.cat([z.unflatten(0, (len(initial), draws)), prior_z], dim=1).flatten(0, 1)
     pool = draws + prior_draws
-    motion = model.decode(z, repeat_encoded(encoded, pool)).view(initial.shape[0], pool, -1, *initial.shape[1:])
+    motion = model.decode(z, repeat_encoded(encoded, pool))[0].view(initial.shape[0], pool, -1, *initial.shape[1:])
     motion = model.complete(motion, initial, trajectories, mask, keep_given=False)
     chosen = [selection.distinct_plausible(m, i, count, t, k)
               for m, i, t, k in zip(motion.numpy(), initial.numpy(), trajectories.numpy(), mask.numpy())]

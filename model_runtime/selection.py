@@ -23,6 +23,7 @@ numpy only, so Blender needs no torch.
 import numpy as np
 
 from . import metrics
+from .masks import per_coordinate
 from .skeleton import rigid_bone_lengths
 
 POOL_FACTOR = 5  # diverse sampler draws per variant asked for
@@ -40,11 +41,14 @@ def implausibility(candidates, initial, given=None, known=None):
     given positions, each relative to the pool's median.
 
     candidates (P, T, 17, 3) in metres at the model rate, as decoded (not yet pinned); initial
-    (17, 3) holds the rig's bone lengths; given (T, 17, 3) and known (T, 17) as the model's input.
+    (17, 3) holds the rig's bone lengths; given (T, 17, 3) and known (T, 17, 3) or (T, 17) as the
+    model's input (a joint's distance over its known coordinates).
     """
     cost = _relative(np.abs(rigid_bone_lengths(candidates) - rigid_bone_lengths(initial)).mean(axis=(1, 2)))
     if known is not None and known.any():
-        cost += _relative(np.linalg.norm(candidates - given, axis=-1)[:, known > 0].mean(axis=1))
+        known = per_coordinate(known)
+        distance = np.sqrt((np.square(candidates - given) * known).sum(-1))
+        cost += _relative(distance[:, known.any(-1)].mean(axis=1))
     return cost
 
 

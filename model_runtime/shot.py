@@ -37,6 +37,12 @@ MAX_START_GAP_M = 1.0
 MAX_BELOW_FEET_M = 0.2
 # Frames compared for the distance between variants.
 COMPARED_FRAMES = 300
+# A curve bound to the hips whose mean height over the floor is under this share of the hips'
+# standing height is a ground path: it gives the hips' horizontal position only (the model chooses
+# their height, the steps and the body), and without drawing times the walk along it speeds up from
+# rest and slows to rest over GROUND_EASE_S at either end.
+GROUND_PATH_HEIGHT = 0.5
+GROUND_EASE_S = 0.5
 # Share of ``run``'s progress spent in the networks; the retarget takes the rest.
 INFERENCE_SHARE = 0.75
 
@@ -78,8 +84,9 @@ class Request:
 @dataclass
 class ModelInput:
     """A request as the model sees it: ``placement`` (world <-> model frame), initial (17, 3),
-    trajectories (T, 17, 3) and mask (T, 17) of the known joints on the model frames after the
-    initial one; targets: joint -> (F, 3) world position its curve asks for on each scene frame;
+    trajectories (T, 17, 3) and mask (T, 17, 3) of the known joint coordinates on the model frames
+    after the initial one; targets: joint -> (F, 3) world position its curve asks for on each scene
+    frame, of which axes: joint -> (3,) bool says the coordinates followed (a ground path: x and y);
     keyed: scene frame index -> {joint: (3,) model-frame position}."""
 
     placement: generation.Placement
@@ -87,6 +94,7 @@ class ModelInput:
     trajectories: np.ndarray
     mask: np.ndarray
     targets: dict
+    axes: dict
     keyed: dict
 
 
@@ -94,13 +102,15 @@ class ModelInput:
 class Result:
     """A shot's variants: motion (count, F, 17, 3) world at the scene's frames; contacts
     (count, F, 2) planted right and left feet; targets: joint -> (F, 3) world position its curve
-    asks for on each scene frame; channels, per variant ``retarget.key_channels``;
+    asks for on each scene frame, on the coordinates axes: joint -> (3,) bool;
+    channels, per variant ``retarget.key_channels``;
     shortfall, per variant {joint: (F,) world distance its curve lies beyond the limb's reach};
     difference, per variant the mean joint distance to the nearest other variant (world)."""
 
     motion: np.ndarray
     contacts: np.ndarray
     targets: dict
+    axes: dict
     channels: list
     shortfall: list
     difference: list
@@ -127,7 +137,7 @@ def model_input(request):
     steps = generation.model_frames(len(frames), fps)
     span = (len(frames) - 1) * generation.NATIVE_FPS / fps  # model frames to the shot's last frame
     trajectories = np.zeros((steps, NUM_JOINTS, 3), np.float32)
-    mask = np.zeros((steps, NUM_JOINTS), np.float32)
+    mask = np.zeros((steps, NUM_JOINTS, 3), np.float32)
     keyed = {}
     for frame, joints in request.keys.items():  # keys constrain their joints on their frames only
         index = int(frame - frames[0])
@@ -136,12 +146,30 @@ def model_input(request):
         for step in {int(np.floor(model_time)), int(np.ceil(model_time))} - {0}:  # both sides of the key
             for joint, position in keyed[index].items():
                 trajectories[step - 1, J[joint]], mask[step - 1, J[joint]] = position, 1.0
-    targets = {}
+    targets, axes = {}, {}
+    seconds = (len(frames) - 1) / fps
     for joint, (points, times) in request.curves.items():
-        trajectories[:, J[joint]] = placement.to_model(generation.curve_samples(points, steps, span, times)[1:])
-        mask[:, J[joint]] = 1.0
-        targets[joint] = generation.curve_samples(points, len(frames) - 1, len(frames) - 1, times)
-    return ModelInput(placement, placement.to_model(request.start_joints), trajectories, mask, targets, keyed)
+        ground = joint == "Hip" and on_the_ground(request, points)
+        ease = min(GROUND_EASE_S / max(seconds, 1e-9), 0.5) if ground and times is None else 0.0
+        axes[joint] = np.array([True, True, not ground])
+        trajectories[:, J[joint]] = placement.to_model(generation.curve_samples(points, steps, span, times, ease)[1:])
+        mask[:, J[joint]] = axes[joint]
+        targets[joint] = generation.curve_samples(points, len(frames) - 1, len(frames) - 1, times, ease)
+    return ModelInput(placement, placement.to_model(request.start_joints), trajectories, mask, targets, axes,
+                      keyed)
+
+
+def on_the_ground(request, points):
+    """Whether a hip curve's points (P, 3) lie on or near the floor (a ground path)."""
+    standing = request.start_joints[J["Hip"], 2] - request.floor
+    return float(np.mean(points[:, 2]) - request.floor) < GROUND_PATH_HEIGHT * standing
+
+
+def checked_input(request):
+    """The request's ModelInput, once its curves are known to be within reach (else InputError)."""
+    given = model_input(request)
+    check_reach(request, given)
+    return given
 
 
 def check_reach(request, given):
@@ -154,7 +182,8 @@ def check_reach(request, given):
     problems = []
     for joint, path in given.targets.items():
         name = f"curve {request.curve_names[joint]!r} ({request.rig.bones[joint]})"
-        gap = np.linalg.norm(path[0] - request.start_joints[J[joint]]) * request.metres_per_unit
+        axes = given.axes[joint]
+        gap = np.linalg.norm((path[0] - request.start_joints[J[joint]])[axes]) * request.metres_per_unit
         if gap * to_body > MAX_START_GAP_M:
             problems.append(f"{name} starts {gap:.2f} m from its joint, which can jump at most "
                             f"{MAX_START_GAP_M / to_body:.2g} m onto it; draw it from the joint")
@@ -163,7 +192,7 @@ def check_reach(request, given):
             problems.append(f"{name} is {length:.1f} m long, {length / seconds:.3g} m/s over the {seconds:.1f} s "
                             f"frame range where this body manages about {MAX_MEAN_SPEED_M_S / to_body:.3g} m/s; "
                             "shorten it or lengthen the range")
-        below = (feet - path[:, 2].min()) * request.metres_per_unit
+        below = (feet - path[:, 2].min()) * request.metres_per_unit if axes[2] else 0.0
         if below * to_body > MAX_BELOW_FEET_M:
             problems.append(f"{name} goes {below:.2f} m below the feet, through the floor")
     if problems:
@@ -178,30 +207,33 @@ def to_armature(world_to_armature, points):
     return (rotation @ points[..., None])[..., 0] + offset
 
 
-def run(request, model, sampler=None, progress=None):
+def run(request, model, sampler=None, progress=None, given=None):
     """The request's variants (a Result). ``sampler``: the diverse sampler, whose pool of draws is
     screened for plausibility and for following the curves and keys, then spread (``selection``):
     with one hand curve the prior's own draws stayed 0.06 m apart, the sampler's 0.24 m;
-    ``progress(fraction)`` is called as the work goes on and may raise to stop it."""
+    ``progress(fraction)`` is called as the work goes on and may raise to stop it; ``given``: the
+    request's ``checked_input`` where the caller has it already."""
     report = progress or (lambda fraction: None)
-    given = model_input(request)
-    check_reach(request, given)
-    motion = generation.generate(model, given.initial, given.trajectories, given.mask, request.count,
-                                 np.random.default_rng(request.seed), request.diversity, sampler,
-                                 progress=lambda fraction: report(INFERENCE_SHARE * fraction))
+    given = given or checked_input(request)
+    motion, planted = generation.generate(model, given.initial, given.trajectories, given.mask, request.count,
+                                          np.random.default_rng(request.seed), request.diversity, sampler,
+                                          progress=lambda fraction: report(INFERENCE_SHARE * fraction))
     frames = len(request.frames)
     scene_rate = np.empty((request.count, frames, NUM_JOINTS, 3))
     for index in range(request.count):  # one variant at a time: resampling makes copies
         scene_rate[index] = generation.to_scene_rate(motion[index].astype(np.float64), frames, request.fps)
     del motion
+    planted = generation.to_scene_rate(planted[..., None], frames, request.fps)[..., 0]
     targets = {joint: given.placement.to_model(path).astype(np.float64) for joint, path in given.targets.items()}
-    scene_rate, contacts, turns = cleanup.tidy(scene_rate, request.fps, given.initial, targets, given.keyed)
+    scene_rate, contacts, turns = cleanup.tidy(scene_rate, request.fps, given.initial, targets, given.axes,
+                                               given.keyed, planted)
     report(INFERENCE_SHARE)  # a chance to stop before the retarget
     world = given.placement.to_world(scene_rate)
     del scene_rate
     if not np.isfinite(world).all():
         raise InputError("the model returned motion that is not a number for this input; nothing was written")
-    pinned = cleanup.pinned_joints(frames, given.targets, given.keyed, request.fps)
+    followed = {joint: path for joint, path in given.targets.items() if given.axes[joint].all()}
+    pinned = cleanup.pinned_joints(frames, followed, given.keyed, request.fps)  # a ground path's hips find their height
     turns = turns - _yaw(request.armature_to_world)[None, :, None]  # the feet's turns in armature space
     world_scale = np.abs(np.linalg.det(request.armature_to_world[:, :3, :3])) ** (1.0 / 3.0)  # (F or 1,)
     world_to_armature = np.linalg.inv(request.armature_to_world)
@@ -219,7 +251,7 @@ def run(request, model, sampler=None, progress=None):
         shortfall.append({joint: world_scale * retarget.reach_shortfall(request.rig, achieved, path, joint)
                           for joint, path in curves_here.items()})
         report(INFERENCE_SHARE + (1.0 - INFERENCE_SHARE) * (index + 1) / request.count)
-    return Result(world, contacts, given.targets, channels, shortfall, _nearest_other(world))
+    return Result(world, contacts, given.targets, given.axes, channels, shortfall, _nearest_other(world))
 
 
 def _yaw(armature_to_world):

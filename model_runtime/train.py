@@ -1,7 +1,14 @@
 """``python -m model_runtime.train``: train TrajeVAE on the shared motion capture, on the CPU.
 
 Two stages. The first trains the network of the paper (encoders, prior,
-posterior, decoder); the second trains the completion stage alone
+posterior, decoder) with GSPS's realism terms and foot contacts: the decoder
+predicts which feet are planted (labels from the capture's foot height and
+speed, ``contacts.foot_contacts``); planted feet are held still, no foot goes
+below the window's floor, and poses stay within the joint-angle limits fitted
+on the training poses and keep their bone lengths, on the posterior
+reconstruction and on one prior sample per window (the prior sample's planted
+feet are those it predicts itself). A share of windows starts from a rest
+pose (``augment.rest_start``), as the add-on's rigs do. The second trains the completion stage alone
 (``TrajeVAE.complete``) on the frozen first stage's decodes (posterior
 reconstructions, and for a share of each batch the prior mean's decode), with
 its own seed, so it can start from a first stage's saved weights (``--init``)
@@ -15,33 +22,42 @@ The best model is written to assets/trajevae.npz.
 """
 
 import argparse
+import json
 import math
 import sys
 import time
 from dataclasses import asdict, dataclass
+from pathlib import Path
 
 import numpy as np
 import torch
 
-from . import augment, checkpoints, masks, metrics, weights
-from .data import dataset
+from . import augment, checkpoints, masks, metrics, realism, weights
+from .contacts import foot_contacts
+from .data import clips, dataset
 from .model import ModelConfig, TrajeVAE, kl_divergence, parameter_count
-from .skeleton import rigid_bone_lengths
+from .skeleton import FEET, indices, rigid_bone_lengths
 
 
 @dataclass(frozen=True)
 class TrainConfig:
-    steps: int = 10000  # first stage
-    completion_steps: int = 4000  # second stage: the completion stage alone
+    steps: int = 6000  # first stage
+    completion_steps: int = 1500  # second stage: the completion stage alone
     completion_learning_rate: float = 3e-4  # warm-up, then one cosine decay
     completion_mean_share: float = 0.25  # of each second-stage batch, decoded from the prior mean
     batch: int = 64
     learning_rate: float = 4e-4
     warmup: int = 300
-    cycle: int = 5000  # steps per cosine cycle
+    cycle: int = 6000  # steps per cosine cycle
     restart_peak: float = 0.5  # each restart's peak relative to the previous one's
     beta: float = 0.01  # KL weight, the paper's
     bone_weight: float = 1.0  # rigid bones keep the initial pose's lengths
+    contact_weight: float = 1.0  # binary cross-entropy of the contact logits, summed over frames and feet
+    skating_weight: float = 1.0  # squared horizontal speed (m/s) of planted feet, summed over frames and feet
+    floor_weight: float = 100.0  # squared depth of an ankle below the window's lowest, summed over frames
+    angle_weight: float = 2.0  # GSPS: squared cosine outside the joint-angle limits, summed over frames
+    prior_realism_share: float = 0.5  # weight of the realism terms on the prior sample
+    rest_start_share: float = 0.2  # windows whose initial pose is a rest pose (``augment.rest_start``)
     mirror_probability: float = 0.5
     seed: int = 0
     validate_every: int = 500
@@ -49,22 +65,39 @@ class TrainConfig:
 
 
 class WindowSampler:
-    """Random training windows (B, 1 + T, 17, 3) drawn from whole clips, any start frame."""
+    """Random training windows (B, 1 + T, 17, 3) and their sole heights (B, 1 + T, 2) drawn from
+    whole clips, any start frame."""
 
-    def __init__(self, clips, frames):
+    def __init__(self, clip_list, frames):
         self.length = frames + 1
-        kept = [c.positions for c in clips if c.frames >= self.length]
-        self.motion = np.concatenate(kept)
-        ends = np.cumsum([len(p) for p in kept])
-        self.starts = np.concatenate([np.arange(end - len(p), end - self.length + 1)
-                                      for p, end in zip(kept, ends)])
+        kept = [c for c in clip_list if c.frames >= self.length]
+        self.motion = np.concatenate([c.positions for c in kept])
+        self.soles = np.concatenate([c.soles for c in kept])
+        ends = np.cumsum([c.frames for c in kept])
+        self.starts = np.concatenate([np.arange(end - c.frames, end - self.length + 1)
+                                      for c, end in zip(kept, ends)])
 
     def __len__(self):
         return len(self.starts)
 
     def sample(self, batch, rng):
-        starts = rng.choice(self.starts, size=batch)
-        return dataset.normalise(self.motion[starts[:, None] + np.arange(self.length)])
+        frames = rng.choice(self.starts, size=batch)[:, None] + np.arange(self.length)
+        return dataset.normalise(self.motion[frames]), self.soles[frames]
+
+
+def training_batch(sampler, config, frames, rng):
+    """One batch as tensors: motion (B, 1 + T, 17, 3), mask (B, T, 17, 3), contact labels (B, T, 2)
+    of the frames after the initial one. Rest starts, mirroring (feet swapped) and turns about Z."""
+    motion, soles = sampler.sample(config.batch, rng)
+    rest = (rng.random(config.batch) < config.rest_start_share) & augment.stands_upright(motion)
+    if rest.any():
+        motion[rest], soles[rest] = augment.rest_start(motion[rest], soles[rest], rng)
+    flip = rng.random(config.batch) < config.mirror_probability
+    motion[flip], soles[flip] = augment.mirror(motion[flip]), soles[flip][..., ::-1]
+    motion = augment.rotate_about_z(motion, rng.uniform(0, 2 * np.pi, config.batch)).astype(np.float32)
+    contacts = foot_contacts(motion, soles, clips.NATIVE_FPS)[:, 1:].astype(np.float32)
+    mask = masks.sample_training_masks(config.batch, frames, rng)
+    return torch.from_numpy(motion), torch.from_numpy(mask), torch.from_numpy(contacts)
 
 
 def validation_set(clips, frames, stride=10):
@@ -75,31 +108,59 @@ def validation_set(clips, frames, stride=10):
     return windows, mask
 
 
-def losses(model, initial, future, mask, config):
-    """Loss terms per the paper (summed squared error and KL per sample) plus bone lengths."""
-    reconstruction, prior, posterior = model(initial, future, mask)
-    squared = ((reconstruction - future) ** 2).sum(-1)
+def realism_terms(motion, initial, future, planted, limits):
+    """GSPS realism of motions (B, T, J, 3), each summed over frames and meaned over the batch:
+    rigid bone lengths against the initial pose, joint angles outside ``limits``, planted feet's
+    squared horizontal speed (m/s; ``planted`` (B, T, 2) weights in [0, 1]) and ankles below the
+    window's lowest captured ankle (``future`` (B, T, J, 3))."""
+    bones = ((rigid_bone_lengths(motion) - rigid_bone_lengths(initial)[:, None]) ** 2).flatten(1).sum(-1).mean()
+    angles = realism.angle_limit_loss(motion, limits).sum(-1).mean()
+    skating = realism.planted_skating_loss(motion, initial, planted, clips.NATIVE_FPS).mean()
+    below = realism.floor_loss(motion, future[:, :, indices(FEET), 2].amin(dim=1, keepdim=True)).mean()
+    return {"bones": bones, "angles": angles, "skating": skating, "floor": below}
+
+
+def weighted_realism(terms, config):
+    return (config.bone_weight * terms["bones"] + config.angle_weight * terms["angles"]
+            + config.skating_weight * terms["skating"] + config.floor_weight * terms["floor"])
+
+
+def losses(model, initial, future, mask, contacts, limits, config):
+    """Loss terms per the paper (summed squared error and KL per sample), the contact logits' cross-entropy,
+    and the realism terms on the reconstruction (its planted feet: the labels) and on the prior sample
+    (its planted feet: its own predictions)."""
+    decoded = model(initial, future, mask)
+    squared = (decoded.reconstruction - future) ** 2
+    mask = masks.per_coordinate(mask)
     known = (squared * mask).flatten(1).sum(-1).mean()
     unknown = (squared * (1 - mask)).flatten(1).sum(-1).mean()
-    kl = kl_divergence(posterior, prior).mean()
-    bones = ((rigid_bone_lengths(reconstruction) - rigid_bone_lengths(initial)[:, None]) ** 2).flatten(1).sum(-1).mean()
-    total = known + unknown + config.beta * kl + config.bone_weight * bones
-    return total, {"known": known.item(), "unknown": unknown.item(), "kl": kl.item(), "bones": bones.item()}
+    kl = kl_divergence(decoded.posterior, decoded.prior).mean()
+    contact = torch.nn.functional.binary_cross_entropy_with_logits(
+        decoded.contacts, contacts, reduction="none").flatten(1).sum(-1).mean()
+    realism_now = realism_terms(decoded.reconstruction, initial, future, contacts, limits)
+    realism_prior = realism_terms(decoded.prior_motion, initial, future,
+                                  torch.sigmoid(decoded.prior_contacts).detach(), limits)
+    total = (known + unknown + config.beta * kl + config.contact_weight * contact
+             + weighted_realism(realism_now, config) + config.prior_realism_share * weighted_realism(realism_prior, config))
+    parts = {"known": known.item(), "unknown": unknown.item(), "kl": kl.item(), "contact": contact.item()}
+    parts.update({name: value.item() for name, value in realism_now.items()})
+    parts.update({"prior_" + name: value.item() for name, value in realism_prior.items()})
+    return total, parts
 
 
-def completion_losses(model, initial, future, mask, config):
-    """Second-stage loss: ``root_and_body_error`` plus bone lengths of the completed decodings,
-    with the first stage frozen and without dropout.
+def completion_losses(model, initial, future, mask, contacts, limits, config):
+    """Second-stage loss: ``root_and_body_error`` plus the realism terms of the completed decodings
+    (planted feet: the labels), with the first stage frozen and without dropout.
 
     Most of the batch is decoded from posterior samples; ``completion_mean_share`` of it from
     the prior mean, the model's point prediction, which the stage otherwise never sees (trained on
     posterior samples alone, completing the prior mean's decode added up to 9 mm to its
     final-frame error).
     """
-    given = future * mask[..., None]
+    given = future * masks.per_coordinate(mask)
     model.eval()
     with torch.no_grad():
-        decoded = model(initial, future, mask)[0]
+        decoded = model(initial, future, mask).reconstruction
         means = round(config.completion_mean_share * len(initial))
         if means:
             decoded[:means] = model.sample(initial[:means], given[:means], mask[:means], 1, use_mean=True,
@@ -107,8 +168,9 @@ def completion_losses(model, initial, future, mask, config):
     model.train()
     completed = model.complete(decoded[:, None], initial, given, mask)[:, 0]
     error = root_and_body_error(completed, future).mean()
-    bones = ((rigid_bone_lengths(completed) - rigid_bone_lengths(initial)[:, None]) ** 2).flatten(1).sum(-1).mean()
-    return error + config.bone_weight * bones, {"completion": error.item(), "bones": bones.item()}
+    terms = realism_terms(completed, initial, future, contacts, limits)
+    return error + weighted_realism(terms, config), {"completion": error.item(),
+                                                     **{name: value.item() for name, value in terms.items()}}
 
 
 def root_and_body_error(motion, truth):
@@ -169,13 +231,15 @@ def learning_rate(step, peak, warmup, cycle, restart_peak=0.5):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m model_runtime.train", description=__doc__)
-    parser.add_argument("--data", nargs="+", default=[str(dataset.DEFAULT_DATA_ROOT)])
+    parser.add_argument("--data", nargs="+", default=[str(root) for root in dataset.DATA_ROOTS])
     parser.add_argument("--steps", type=int, default=TrainConfig.steps, help="first-stage steps")
     parser.add_argument("--completion-steps", type=int, default=TrainConfig.completion_steps)
     parser.add_argument("--init", help="first-stage weights (.npz from this command) to start the second stage from")
     parser.add_argument("--batch", type=int, default=TrainConfig.batch)
     parser.add_argument("--seed", type=int, default=TrainConfig.seed)
     parser.add_argument("--out", default=str(weights.MODEL_WEIGHTS), help="where the best model goes")
+    parser.add_argument("--limits", default=str(realism.ANGLE_LIMITS),
+                        help="where the joint-angle limits fitted on the training poses go")
     parser.add_argument("--checkpoint", default=str(checkpoints.default_path("trajevae")))
     parser.add_argument("--fresh", action="store_true", help="ignore an existing checkpoint")
     parser.add_argument("--threads", type=int, default=0, help="torch threads (0: all cores)")
@@ -191,6 +255,9 @@ def main(argv=None):
     manifest = dataset.read_manifest()
     train_clips, validation_clips = dataset.split_by_subject(clips, manifest)
     sampler = WindowSampler(train_clips, model_config.frames)
+    Path(args.limits).parent.mkdir(parents=True, exist_ok=True)
+    Path(args.limits).write_text(json.dumps(realism.fit_angle_limits(sampler.motion), indent=1))
+    limits = realism.load_angle_limits(args.limits)
     val_windows, val_mask = validation_set(validation_clips, model_config.frames)
     print(f"training windows {len(sampler)} from {len(train_clips)} clips; "
           f"validation windows {len(val_windows)} from {len(validation_clips)} clips "
@@ -226,16 +293,11 @@ def main(argv=None):
             rng.bit_generator.state = np.random.default_rng(config.seed + 1).bit_generator.state
             torch.manual_seed(config.seed + 1)
             first_stage_minutes, running, pace_since = run.elapsed / 60, {}, (run.step, run.elapsed)
-        motion = sampler.sample(config.batch, rng)
-        flip = rng.random(config.batch) < config.mirror_probability
-        motion[flip] = augment.mirror(motion[flip])
-        motion = augment.rotate_about_z(motion, rng.uniform(0, 2 * np.pi, config.batch)).astype(np.float32)
-        mask = masks.sample_training_masks(config.batch, model_config.frames, rng)
-        motion, mask = torch.from_numpy(motion), torch.from_numpy(mask)
+        motion, mask, contacts = training_batch(sampler, config, model_config.frames, rng)
         for group in optimizer.param_groups:
             group["lr"] = stage_learning_rate(run.step, config)
         stage_losses = losses if run.step < config.steps else completion_losses
-        total, parts = stage_losses(model, motion[:, 0], motion[:, 1:], mask, config)
+        total, parts = stage_losses(model, motion[:, 0], motion[:, 1:], mask, contacts, limits, config)
         optimizer.zero_grad()
         total.backward()
         torch.nn.utils.clip_grad_norm_(model.parameters(), 100.0)

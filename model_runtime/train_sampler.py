@@ -9,7 +9,8 @@ sample's distance to its nearest sibling (the duplicate-aware objective of
 ../shared/papers/003: a mean-based hinge alone leaves near-duplicates),
 best-of-K accuracy, KL of the standardised Gaussians to N(0, I), and realism
 terms (GSPS joint-angle limits fitted on the training subjects, rigid bone
-lengths, foot skating) so diversity never comes from broken poses. Half the conditions have
+lengths, the squared speed of the feet the model predicts planted) so diversity never comes from
+broken poses. Half the conditions have
 no trajectories (the sampler's main use), half have training masks. Model
 selection on the validation subjects; weights to assets/sampler.npz.
 """
@@ -70,10 +71,11 @@ def sampler_losses(model, sampler, initial, future, mask, limits, margins, confi
     """Weighted total and its parts for one batch; margins = (all-pairs hinge, nearest-sibling hinge) in metres."""
     margin, duplicate_margin = margins
     count = config.samples
-    prior_mean, prior_log_var, encoded = model.prior(initial, future * mask[..., None], mask)
+    prior_mean, prior_log_var, encoded = model.prior(initial, future * masks.per_coordinate(mask), mask)
     z, (mean, log_var) = sampler.latents(prior_mean, prior_log_var, count, generator)
-    motion = model.decode(z, repeat_encoded(encoded, count))
+    motion, contacts = model.decode(z, repeat_encoded(encoded, count))
     motion = motion.view(initial.shape[0], count, *motion.shape[1:])
+    planted = torch.sigmoid(contacts.view(*motion.shape[:3], -1)).detach()
     distances = pairwise_distances(motion)
     upper = torch.triu(torch.ones(count, count, dtype=torch.bool), diagonal=1)
     diversity = torch.relu(margin - distances[:, upper]).mean() / margin
@@ -82,7 +84,7 @@ def sampler_losses(model, sampler, initial, future, mask, limits, margins, confi
     kl = 0.5 * (mean ** 2 + torch.exp(log_var) - log_var - 1.0).mean()
     angles = realism.angle_limit_loss(motion, limits).mean()
     bones = ((rigid_bone_lengths(motion) - rigid_bone_lengths(initial)[:, None, None]) ** 2).mean()
-    skating = realism.skating_loss(motion, clips.NATIVE_FPS)
+    skating = realism.planted_skating_loss(motion, initial, planted, clips.NATIVE_FPS).mean() / motion.shape[2]
     total = (config.diversity_weight * diversity + config.duplicate_weight * duplicate
              + config.accuracy_weight * accuracy + config.kl_weight * kl + config.angle_weight * angles
              + config.bone_weight * bones + config.skating_weight * skating)
@@ -124,7 +126,7 @@ def main(argv=None):
     model, _ = weights.load_model(args.model)
     for parameter in model.parameters():
         parameter.requires_grad_(False)
-    clips, _ = dataset.load_clips([dataset.DEFAULT_DATA_ROOT])
+    clips, _ = dataset.load_clips(dataset.DATA_ROOTS)
     train_clips, validation_clips = dataset.split_by_subject(clips, dataset.read_manifest())
     if not Path(args.limits).exists():
         poses = np.concatenate([c.positions for c in train_clips])
@@ -164,7 +166,7 @@ def main(argv=None):
     started, running = time.time() - run.elapsed, {}
     sampler.train()
     while run.step < config.steps:
-        motion = windows.sample(config.batch, rng)
+        motion, _ = windows.sample(config.batch, rng)
         motion = augment.rotate_about_z(motion, rng.uniform(0, 2 * np.pi, config.batch)).astype(np.float32)
         mask = masks.sample_training_masks(config.batch, frames, rng)
         mask[rng.random(config.batch) < config.empty_mask_share] = 0.0

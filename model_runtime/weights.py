@@ -12,6 +12,8 @@ ASSETS = Path(__file__).resolve().parents[1] / "assets"
 MODEL_WEIGHTS = ASSETS / "trajevae.npz"
 SAMPLER_WEIGHTS = ASSETS / "sampler.npz"
 RESTORE = "restore it from the repository (git) or train it again (make train, make train-sampler)"
+# Configuration of model files written before these fields existed: a per-joint mask, no contacts.
+MODEL_CONFIG_BEFORE_CONTACTS = {"coordinate_masks": False, "contacts": False}
 
 
 def save(path, module, config, extra=None):
@@ -33,9 +35,11 @@ def load_state(path):
     return {name: torch.from_numpy(array) for name, array in arrays.items()}, meta
 
 
-def load(path, module_class, config_class):
-    """(module in eval mode, meta dict) from a file written by ``save``."""
+def load(path, module_class, config_class, earlier_defaults=None):
+    """(module in eval mode, meta dict) from a file written by ``save``; ``earlier_defaults`` fill
+    config fields that older files lack."""
     state, meta = load_state(path)
+    meta["config"] = {**(earlier_defaults or {}), **meta["config"]}
     module = module_class(config_class(**meta["config"]))
     module.load_state_dict(state)
     return module.eval(), meta
@@ -43,7 +47,7 @@ def load(path, module_class, config_class):
 
 def load_model(path=MODEL_WEIGHTS):
     from .model import ModelConfig, TrajeVAE
-    return load(path, TrajeVAE, ModelConfig)
+    return load(path, TrajeVAE, ModelConfig, MODEL_CONFIG_BEFORE_CONTACTS)
 
 
 def load_sampler(path=SAMPLER_WEIGHTS):

@@ -1,5 +1,5 @@
-"""Shared fixtures: the real CMU/ACCAD motion capture beside the repository, and a Blender scene
-with the add-on registered."""
+"""Shared fixtures: the real CMU/ACCAD motion capture beside the repository (../shared/mocap and
+../shared/mocap-extra), and a Blender scene with the add-on registered."""
 
 import pytest
 
@@ -7,20 +7,26 @@ from model_runtime.data import dataset
 
 
 @pytest.fixture(scope="session")
-def mocap_root():
-    root = dataset.DEFAULT_DATA_ROOT
-    assert (root / "MANIFEST.csv").exists(), f"motion capture not found at {root}"
-    return root
+def mocap_roots():
+    for root in dataset.DATA_ROOTS:
+        assert (root / "MANIFEST.csv").exists(), f"motion capture not found at {root}"
+    return dataset.DATA_ROOTS
 
 
 @pytest.fixture(scope="session")
-def manifest(mocap_root):
-    return dataset.read_manifest(mocap_root)
+def mocap_root(mocap_roots):
+    """../shared/mocap, whose files some tests name."""
+    return mocap_roots[0]
 
 
 @pytest.fixture(scope="session")
-def all_clips(mocap_root):
-    loaded, errors = dataset.load_clips([mocap_root])
+def manifest(mocap_roots):
+    return dataset.read_manifest(mocap_roots)
+
+
+@pytest.fixture(scope="session")
+def all_clips(mocap_roots):
+    loaded, errors = dataset.load_clips(mocap_roots)
     assert errors == []
     return loaded
 

@@ -45,13 +45,19 @@ def test_protocol_is_root_relative():
 def test_training_masks_cover_every_family():
     rng = np.random.default_rng(0)
     batch = masks.sample_training_masks(400, 60, rng)
-    assert batch.shape == (400, 60, 17)
-    known_frames = batch.any(axis=2).sum(axis=1)
-    constant_in_time = np.all(batch == batch[:, :1], axis=(1, 2))
+    assert batch.shape == (400, 60, 17, 3)
+    known_frames = batch.any(axis=(2, 3)).sum(axis=1)
+    constant_in_time = np.all(batch == batch[:, :1], axis=(1, 2, 3))
     assert (known_frames == 0).any()  # nothing given
     assert (constant_in_time & (known_frames == 60)).any()  # whole trajectories
     assert (~constant_in_time).sum() > 50  # keys, end poses, partial curves
-    assert (batch[:, -1].all(axis=1) & ~batch[:, 0].all(axis=1)).any()  # end pose
+    assert (batch[:, -1].all(axis=(1, 2)) & ~batch[:, 0].all(axis=(1, 2))).any()  # end pose
+    hip = batch[:, :, 0]
+    ground = hip[..., :2].all(axis=-1) & (hip[..., 2] == 0)  # the hips' horizontal position only
+    assert (ground.all(axis=1)).sum() > 20  # ground paths
+    assert (ground.any(axis=1) & ~ground.all(axis=1)).sum() > 5  # waypoints
+    partial = batch.any(axis=-1) & ~batch.all(axis=-1)
+    assert np.array_equal(partial.any(axis=(1, 2)), ground.any(axis=1))  # only the hips go by coordinate
 
 
 def test_baselines_pin_given_joints_and_match_their_own_data(all_clips):

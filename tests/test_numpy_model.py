@@ -33,8 +33,9 @@ def test_numpy_prior_and_decoder_match_torch(tmp_path, all_clips):
         np.testing.assert_allclose(a, b.numpy(), atol=2e-4)
     z = np.random.default_rng(0).standard_normal(got[0].shape).astype(np.float32)
     with torch.no_grad():
-        motion = torch_model.decode(torch.from_numpy(z), expected[2])
-    np.testing.assert_allclose(numpy_model.decode(z, got[2]), motion.numpy(), atol=1e-3)
+        motion, contacts = torch_model.decode(torch.from_numpy(z), expected[2])
+    for a, b in zip(numpy_model.decode(z, got[2]), (motion, contacts)):
+        np.testing.assert_allclose(a, b.numpy(), atol=1e-3)
     decoded = motion.numpy()[:, None]
     condition = [torch.from_numpy(np.ascontiguousarray(a)) for a in (initial, trajectories, mask)]
     for keep_given in (True, False):
@@ -76,7 +77,7 @@ def test_with_curves_the_variants_follow_them_closer_and_stretch_less_than_plain
     mean, log_var, encoded = model.prior(initial, trajectories, mask)
     noise = np.random.default_rng(1).standard_normal((3, 10) + mean.shape[1:]).astype(np.float32)
     z = (mean[:, None] + np.exp(0.5 * log_var)[:, None] * noise).reshape(-1, *mean.shape[1:])
-    plain = model.decode(z, tuple(np.repeat(part, 10, axis=0) for part in encoded)).reshape(variants.shape)
+    plain = model.decode(z, tuple(np.repeat(part, 10, axis=0) for part in encoded))[0].reshape(variants.shape)
 
     def straying(motion):
         return np.linalg.norm(motion - trajectories[:, None], axis=-1)[:, :, mask[0] > 0].mean()

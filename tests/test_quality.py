@@ -108,11 +108,29 @@ def test_a_sliding_body_is_held_by_its_planted_feet():
     motion, initial = _still(90), mannequin_module.REST_JOINTS.astype(np.float64)
     motion[..., 1] += np.arange(90)[None, :, None] * 0.5 / FPS  # feet and all glide at 0.5 m/s
     standing, pinned = initial[JOINT_INDEX["RFoot"], 2], np.zeros((90, 17))
-    held = cleanup.without_slide(motion, FPS, standing, pinned, initial, {})
-    held, contacts, turns = cleanup.plant_feet(held, FPS, standing, pinned, initial)
+    unsure = np.zeros((1, 90, 2))  # the model's contacts: none, the height decides
+    held = cleanup.without_slide(motion, FPS, standing, pinned, initial, {}, unsure)
+    held, contacts, turns = cleanup.plant_feet(held, FPS, standing, pinned, initial, unsure)
     feet = held[0][:, [JOINT_INDEX["RFoot"], JOINT_INDEX["LFoot"]]]
     speed = np.linalg.norm(np.diff(feet[..., :2], axis=0), axis=-1).max() * FPS
     assert contacts.all() and speed < 1e-6 and np.abs(turns).max() < 1e-9
+
+
+def test_a_foot_the_model_says_is_planted_is_held_on_the_floor_though_generated_above_it():
+    motion, initial = _still(60), mannequin_module.REST_JOINTS.astype(np.float64)
+    right = JOINT_INDEX["RFoot"]
+    standing, pinned = initial[right, 2], np.zeros((60, 17))
+    motion[0, :, right, 2] += 0.07  # floating 7 cm up
+    motion[0, :, right, 0] += np.arange(60) * 0.2 / FPS  # and drifting sideways at 0.2 m/s
+    said = np.zeros((1, 60, 2))
+    said[0, :, 0] = 1.0
+    for predicted, held in ((np.zeros((1, 60, 2)), False), (said, True)):
+        out, contacts, _ = cleanup.plant_feet(motion, FPS, standing, pinned, initial, predicted)
+        foot = out[0, :, right]
+        assert contacts[0, :, 0].all() == held
+        if held:
+            np.testing.assert_allclose(foot[:, 2], standing, atol=1e-9)
+            assert np.linalg.norm(np.diff(foot[:, :2], axis=0), axis=-1).max() < 1e-9
 
 
 def test_a_key_is_eased_into_and_met_exactly():
@@ -131,7 +149,8 @@ def test_feet_left_behind_step_after_the_body_through_a_long_shot():
     motion = _still(frames)
     motion[..., 1] += np.arange(frames)[None, :, None] * 1.0 / FPS  # carried off at 1 m/s (by a curve, say)
     feet = [JOINT_INDEX["RFoot"], JOINT_INDEX["LFoot"]]
-    moved, contacts, _ = cleanup.plant_feet(motion, FPS, initial[feet[0], 2], np.zeros((frames, 17)), initial)
+    moved, contacts, _ = cleanup.plant_feet(motion, FPS, initial[feet[0], 2], np.zeros((frames, 17)), initial,
+                                            np.zeros((1, frames, 2)))
     behind = np.linalg.norm(moved[0][:, feet, :2] - moved[0][:, [JOINT_INDEX["RHip"], JOINT_INDEX["LHip"]], :2], axis=-1)
     steps = [int((np.diff(contacts[0, :, side].astype(int)) == 1).sum()) for side in range(2)]  # plants after the first
     print(f"carried 100 m: {steps} steps, feet at most {behind.max():.2f} m behind the hips")

@@ -133,7 +133,7 @@ def test_grease_pencil_stroke_followed_at_its_drawing_speed(scene):
     times = np.concatenate([np.linspace(0.0, 1.5, 11), np.linspace(1.6, 2.0, 10)])  # slow, then fast
     stroke = _grease_pencil(scene, points, times)
     api.bind_curve(rig, "RWrist", stroke)
-    targets = lambda job: shot.model_input(job.request).targets["RWrist"]
+    targets = lambda job: job.given.targets["RWrist"]
     timed = targets(pipeline.prepare(rig, 2, 0))
     api.bind_curve(rig, "RWrist", stroke, use_drawing_speed=False)
     even = targets(pipeline.prepare(rig, 2, 0))
@@ -154,7 +154,7 @@ def test_follow_path_constraint_counts_as_a_binding_and_is_restored(scene):
     constraint = rig.pose.bones["LWrist"].constraints.new('FOLLOW_PATH')
     constraint.target = path
     job = pipeline.prepare(rig, 2, 0)
-    assert shot.model_input(job.request).mask[:, JOINT_INDEX["LWrist"]].all()
+    assert job.given.mask[:, JOINT_INDEX["LWrist"]].all()
     report = pipeline.finish(pipeline.infer(job) or job, rig)
     assert all(error < 0.01 for error in report.curve_error_m)
     scene.frame_set(10)

@@ -69,9 +69,9 @@ def bind_curve(armature, bone_name, curve_object, use_drawing_speed=True):
     if not isinstance(use_drawing_speed, (bool, np.bool_)):
         raise TypeError(f"use_drawing_speed must be True or False, not {use_drawing_speed!r}")
     bones = rig_state.mapping(armature)
-    if bone_name not in bones.values():
+    if bone_name not in bindings.bone_joints(armature, bones):
         raise ValueError(f"TrajeVAE does not move {bone_name!r} (no joint is mapped to it); "
-                         f"{bindings.mapped_bones_sentence(bones)}")
+                         f"{bindings.mapped_bones_sentence(armature, bones)}")
     bindings.bind(armature, bone_name, curve_object, bool(use_drawing_speed))
 
 

@@ -66,9 +66,20 @@ def unbind(armature, bone):
     return True
 
 
-def mapped_bones_sentence(bones):
-    """Which bones can be bound: those a joint is mapped to."""
-    names = sorted({bone for bone in bones.values() if bone})
+def bone_joints(armature, bones):
+    """{bone name: joint} of the bones a path can be bound to: those a joint is mapped to, and the
+    bones above the hips (a rig's root, Rigify's ``root``), whose path is the hips' (on the floor,
+    a ground path: the body walks along it)."""
+    joints = {bone: joint for joint, bone in bones.items() if bone}
+    hips = armature.pose.bones.get(bones.get("Hip") or "")
+    for above in (hips.parent_recursive if hips is not None else ()):
+        joints.setdefault(above.name, "Hip")
+    return joints
+
+
+def mapped_bones_sentence(armature, bones):
+    """Which bones can be bound: those a joint is mapped to and the root above the hips."""
+    names = sorted(bone_joints(armature, bones))
     return f"bind one of the mapped bones ({', '.join(names)}) or map the bone under TrajeVAE > Rig Mapping"
 
 
@@ -79,7 +90,7 @@ def problem(armature, binding, bones):
         return "bone deleted"
     if binding.curve is None:
         return "no curve"
-    if bone not in bones.values():
+    if bone not in bone_joints(armature, bones):
         return "bone not mapped"
     return None
 
@@ -90,7 +101,7 @@ def joint_paths(armature, bones):
     native way to say "this bone follows this path"). A binding without a curve or whose bone
     was deleted is skipped with a warning; one on a bone no joint is mapped to is a RigError."""
     refresh(armature)
-    joint_of = {bone: joint for joint, bone in bones.items() if bone}
+    joint_of = bone_joints(armature, bones)
     out, warnings = {}, []
     for binding in armature.trajevae.bindings:
         if binding.curve is None:
@@ -103,7 +114,7 @@ def joint_paths(armature, bones):
         joint = joint_of.get(binding.bone)
         if joint is None:
             raise rig_state.RigError(f"bone {binding.bone!r} is bound to {binding.curve.name!r} but TrajeVAE "
-                                     f"does not move it; {mapped_bones_sentence(bones)}")
+                                     f"does not move it; {mapped_bones_sentence(armature, bones)}")
         out[joint] = (binding.curve, binding.use_drawing_speed)
     for joint, bone in bones.items():
         if bone and joint not in out:

@@ -51,11 +51,12 @@ USER_ERRORS = (InputError, rig_state.RigError, curves.CurveError, inference.Weig
 
 @dataclass
 class Job:
-    """One generation: the shot's request, what Blender needs besides (the mapping, switches to
+    """One generation: the shot's request (and as the model sees it), what Blender needs besides (the mapping, switches to
     key and the values to restore, bones showing the visible pose, sentences for the artist) and,
     after ``infer``, the shot's result."""
 
     request: shot.Request
+    given: shot.ModelInput  # the request as the model sees it, its reach checked
     bones: dict
     switches: dict
     switches_before: dict
@@ -211,8 +212,7 @@ def prepare(armature, count=5, seed=0, diversity=1.0, scene=None):
     note = inference.missing_sampler_note()
     if note:
         warnings.append(note)
-    shot.check_reach(request, shot.model_input(request))
-    return Job(request, bones, switches, switches_before, shown_by, warnings,
+    return Job(request, shot.checked_input(request), bones, switches, switches_before, shown_by, warnings,
                seconds={"read": time.perf_counter() - clock})
 
 
@@ -228,7 +228,7 @@ def infer(job, on_progress=None):
         if job.cancel_event.is_set():
             raise Cancelled()
 
-    job.result = shot.run(job.request, inference.model(), inference.sampler(), advance)
+    job.result = shot.run(job.request, inference.model(), inference.sampler(), advance, job.given)
     job.seconds["shot"] = time.perf_counter() - clock
 
 
@@ -348,7 +348,8 @@ class Writer:
             _, world = rig_state.read(self.armature, self.job.bones, bpy.context.evaluated_depsgraph_get(),
                                       self.job.shown_by)
             for joint, path in self.job.result.targets.items():
-                measured.append((joint, position, float(np.linalg.norm(world[J[joint]] - path[position]))))
+                axes = self.job.result.axes[joint]
+                measured.append((joint, position, float(np.linalg.norm((world[J[joint]] - path[position])[axes]))))
         self._measured[index] = measured or [(None, 0, 0.0)]
 
     def _commit(self):

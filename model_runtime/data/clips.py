@@ -19,9 +19,10 @@ NATIVE_FPS = 30
 LENGTH_UNITS = {"metre": 1.0, "centimetre": 0.01, "inch": 0.0254, "cgspeed": 0.0254 / 0.45}
 TYPICAL_ADULT_HEIGHT_M = 1.7
 # A skeleton whose best unit gives a stature outside this range is rescaled to
-# the typical height (e.g. the DAZ files, "rescaled to metres" by a factor
-# that makes adults 1.2 m tall).
-PLAUSIBLE_HEIGHT_M = (1.45, 1.95)
+# the typical height (e.g. the DAZ files of ../mocap, "rescaled to metres" by a
+# factor that makes adults 1.2 m tall). Real statures within it are kept: CMU
+# subjects read from 1.37 m (105) to 1.95 m.
+PLAUSIBLE_HEIGHT_M = (1.3, 2.1)
 HIP_HEIGHT_PER_STATURE = 0.53
 _Y_UP_TO_Z_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
 
@@ -59,7 +60,7 @@ def load_clip(path):
     motion = bvh.read(path)
     hierarchy = motion.hierarchy
     profile = profiles.detect(hierarchy.names, str(path))
-    motion = bvh.Motion(hierarchy, _drop_added_frames(hierarchy, motion.values, profile), motion.frame_time)
+    motion = bvh.Motion(hierarchy, _drop_added_frames(hierarchy, motion.values), motion.frame_time)
     values_used = motion.values.shape[0]
 
     bones = {joint: hierarchy.index(bone) for joint, bone in profile.resolve(hierarchy.names).items()}
@@ -127,15 +128,16 @@ def _snap_rate(fps):
     return float(round(fps)) if abs(fps - round(fps)) < 1e-3 * fps else fps
 
 
-def _drop_added_frames(hierarchy, values, profile):
-    """Frames (F, C) without the converter's T-pose and any blank leading frames.
+def _drop_added_frames(hierarchy, values):
+    """Frames (F, C) without a converter's T-pose and any blank leading frames.
 
-    The cgspeed MotionBuilder conversion puts a T-pose (root rotation exactly 0)
-    at frame 0; some files follow it with frames whose root channels are all 0.
+    The cgspeed conversions (MotionBuilder and DAZ namings) put a T-pose at frame 0
+    in most files, not all: its root rotation is exactly 0, which no captured
+    frame has. Some files follow it with frames whose root channels are all 0.
     """
     root = len(hierarchy.channels[0])
     rotation = [k for k, name in enumerate(hierarchy.channels[0]) if name.lower().endswith("rotation")]
-    start = 1 if profile.first_frame_is_tpose and not np.any(values[0, rotation]) else 0
+    start = 1 if not np.any(values[0, rotation]) else 0
     while start < values.shape[0] - 1 and not np.any(values[start, :root]):
         start += 1
     return values[start:]

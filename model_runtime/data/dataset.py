@@ -12,12 +12,16 @@ import numpy as np
 from ..skeleton import NUM_JOINTS
 from . import bvh, clips, profiles
 
-CACHE_VERSION = 1  # bump whenever clips.load_clip's output changes
-# The shared CMU/ACCAD set beside the repository, unless $TRAJEVAE_MOCAP says otherwise.
-DEFAULT_DATA_ROOT = Path(os.environ.get("TRAJEVAE_MOCAP") or Path(__file__).resolve().parents[3] / "shared" / "mocap")
-# Whole subjects held out for validation: one CMU subject with varied everyday
-# motion and one ACCAD subject (martial arts). No window of theirs is trained on.
-VALIDATION_SUBJECTS = ("CMU 02", "ACCAD Male2")
+CACHE_VERSION = 3  # bump whenever clips.load_clip's output changes
+_SHARED = Path(__file__).resolve().parents[3] / "shared"
+# The shared CMU/ACCAD folders beside the repository (each with its MANIFEST.csv), unless
+# $TRAJEVAE_MOCAP lists others (separated by the path separator).
+DATA_ROOTS = tuple(Path(root) for root in os.environ["TRAJEVAE_MOCAP"].split(os.pathsep)) \
+    if os.environ.get("TRAJEVAE_MOCAP") else (_SHARED / "mocap", _SHARED / "mocap-extra")
+# Whole subjects held out for validation, one per kind of motion: everyday (CMU 02: walks,
+# a jump, bending, swordplay, washing), locomotion (CMU 08: walks and strides) and sport
+# (ACCAD Male2: martial arts). No window of theirs is trained on.
+VALIDATION_SUBJECTS = ("CMU 02", "CMU 08", "ACCAD Male2")
 WINDOW_FUTURE = 60  # 2 s at clips.NATIVE_FPS
 
 
@@ -38,11 +42,14 @@ def find_bvh(paths):
     return sorted(found)
 
 
-def read_manifest(root=DEFAULT_DATA_ROOT):
-    """Rows of MANIFEST.csv keyed by resolved file path."""
-    root = Path(root)
-    with open(root / "MANIFEST.csv", newline="") as handle:
-        return {(root / row["file"]).resolve(): row for row in csv.DictReader(handle)}
+def read_manifest(roots=DATA_ROOTS):
+    """Rows of the roots' MANIFEST.csv files keyed by resolved file path (a root without one adds none)."""
+    rows = {}
+    for root in map(Path, roots):
+        if (root / "MANIFEST.csv").exists():
+            with open(root / "MANIFEST.csv", newline="") as handle:
+                rows.update({(root / row["file"]).resolve(): row for row in csv.DictReader(handle)})
+    return rows
 
 
 _STORED_FIELDS = [f.name for f in dataclasses.fields(clips.Clip) if f.name != "file"]

@@ -42,7 +42,6 @@ class RigProfile:
     name: str
     bones: dict  # canonical joint -> tuple of accepted bone names
     signature: tuple = ()  # bones that tell this convention from similar ones
-    first_frame_is_tpose: bool = False  # cgspeed MotionBuilder conversions add one
 
     def missing(self, bone_names):
         """Canonical joints (with the bones wanted) that a skeleton lacks."""
@@ -72,8 +71,7 @@ _MOTIONBUILDER = _table("RightUpLeg", "RightLeg", "RightFoot", "LeftUpLeg", "Lef
                         "RightArm", "RightForeArm", "RightHand")
 
 PROFILES = (
-    RigProfile("cmu-motionbuilder", _MOTIONBUILDER, signature=("LHipJoint", "LowerBack"),
-               first_frame_is_tpose=True),
+    RigProfile("cmu-motionbuilder", _MOTIONBUILDER, signature=("LHipJoint", "LowerBack")),
     RigProfile("accad-22", _MOTIONBUILDER, signature=("ToSpine",)),
     RigProfile("accad-24", _MOTIONBUILDER, signature=("Spine4",)),
     RigProfile("cmu-3dsmax", _table("RightHip", "RightKnee", "RightAnkle", "LeftHip", "LeftKnee",
