@@ -1,9 +1,11 @@
 """Benchmark: is the generated motion usable, as an animator sees it? (issue 15)
 
 On the mannequin and a generated Rigify rig (scene at 30 fps, 5 variants per
-shot) it generates four shots: idle from the rest pose, a hand reach, blocking
-keys (rest pose at frame 1, a crouch with both arms up at 45), and 300 frames
-of a slow hand wave. Each is measured as Blender plays it (``frame_set`` on
+shot) it generates seven shots: idle from the rest pose, a hand reach, blocking
+keys (rest pose at frame 1, a crouch with both arms up at 45), 300 frames
+of a slow hand wave, and walks along paths on the floor bound to the hips
+(4 m gently curved over 120 frames, a quarter circle of radius 2.5 m over
+120, 10 m over 300; issue 17). Each is measured as Blender plays it (``frame_set`` on
 every frame) with the figures of ../shared/notes/quality-measures.md, beside
 real capture of ../shared/mocap imported with Blender's own BVH importer and
 measured the same way. Prints one table per rig and writes contact sheets
@@ -25,7 +27,7 @@ sys.path[:0] = [str(ROOT), str(ROOT / "tests"), str(ROOT / "benchmarks")]
 
 import blender_rigs  # noqa: E402
 import contact_sheet  # noqa: E402
-from shots import SHOTS  # noqa: E402
+from shots import SHOTS, WALKS  # noqa: E402
 import trajevae_addon  # noqa: E402
 from model_runtime import animation_quality as quality  # noqa: E402
 from model_runtime import generation, realism  # noqa: E402
@@ -46,7 +48,8 @@ the lower toe's highest height above and deepest depth below it. air: frames wit
 acc: worst joint acceleration; spike: worst frame over median frame. steps: per foot, right/left. lean: hips to
 neck base from vertical. knee-in: knee pointing inward of forward. off-limit: frames outside the joint-angle
 limits fitted on the training data. spread: mean pairwise joint distance of the variants. curve: the bound joint
-to where its curve puts it. key: worst keyed joint at the key frame / the head top, which the keyed rotation of
+to where its curve puts it. path: the hips' farthest from a ground path; facing: worst angle of the body's facing
+from the path's tangent; hip h: the hips' lowest height over their standing height. key: worst keyed joint at the key frame / the head top, which the keyed rotation of
 the head bone places. Over variants: float, sink, acc, spike, lean, knee-in and key are the worst, the rest means.
 Capture, levelled: the clip with its capture floor levelled as the training data loader levels it; the tilt is
 how far that moved points up or down over the clip."""
@@ -127,18 +130,31 @@ def figures(shot, limits, error=None):
             "knee-in deg": f"{quality.knee_inward_degrees(shot.joints.reshape(-1, 17, 3)).max():.0f}",
             "off-limit %": f"{100 * realism.share_outside_limits(shot.joints, limits):.0f}",
             "spread m": f"{quality.spread(shot.joints):.2f}" if len(shot.joints) > 1 else "-",
-            "curve cm": f"{100 * curve_error(shot):.1f}" if shot.curves else "-",
+            "curve cm": f"{100 * curve_error(shot):.1f}" if set(shot.curves) - {"Hip"} else "-",
             "key cm": "-" if error is None else
-            f"{100 * np.delete(error, J['Head']).max():.1f} / {100 * error[J['Head']]:.1f}"}
+            f"{100 * np.delete(error, J['Head']).max():.1f} / {100 * error[J['Head']]:.1f}",
+            **walk_figures(shot)}
+
+
+def walk_figures(shot):
+    """For a walk along a ground path (a Hip curve): the hips' farthest from the path, the worst
+    facing off the path's tangent and the hips' lowest height over standing, worst over takes."""
+    if "Hip" not in shot.curves:
+        return {"path cm": "-", "facing deg": "-", "hip h %": "-"}
+    followed = [quality.path_following(joints, shot.curves["Hip"]) for joints in shot.joints]
+    return {"path cm": f"{100 * max(away for away, _ in followed):.0f}",
+            "facing deg": f"{max(angles.max() for _, angles in followed):.0f}",
+            "hip h %": f"{100 * min(quality.hip_height_share(joints, shot.floor) for joints in shot.joints):.0f}"}
 
 
 def curve_error(shot):
     """Mean distance (m) of each bound joint, as played, to where its curve puts it on each frame
-    (uniform in arc length over the shot), over frames, joints and variants."""
+    (uniform in arc length over the shot), over frames, joints and variants; a ground path (the
+    hips' curve on the floor) is a walk, measured by ``walk_figures`` instead."""
     frames = shot.joints.shape[1]
-    return float(np.mean([np.linalg.norm(shot.joints[:, :, J[joint]]
-                                         - generation.curve_samples(points, frames - 1, frames - 1), axis=-1).mean()
-                          for joint, points in shot.curves.items()]))
+    errors = [np.linalg.norm(shot.joints[:, :, J[joint]] - generation.curve_samples(points, frames - 1, frames - 1),
+                             axis=-1).mean() for joint, points in shot.curves.items() if joint != "Hip"]
+    return float(np.mean(errors)) if errors else float("nan")
 
 
 def table(title, rows):
@@ -175,7 +191,7 @@ def main():
         scene.render.fps, scene.render.fps_base = FPS, 1.0
         rig = build(scene)
         rows = []
-        for label, frames, setup in SHOTS:
+        for label, frames, setup in SHOTS + WALKS:
             shot, error = run_shot(rig, scene, frames, setup)
             rows.append((f"{label} ({frames} f)", figures(shot, limits, error)))
             contact_sheet.save(OUT / f"quality_{name}_{label}.png", f"{name}, {label}: {frames} frames at {FPS} fps, "

@@ -9,7 +9,7 @@ add-on's tests, its benchmark and real capture imported into Blender.
 
 import numpy as np
 
-from .skeleton import JOINT_INDEX
+from .skeleton import JOINT_INDEX, facing
 
 J = JOINT_INDEX
 PLANTED_BAND_M = 0.02  # a toe this close to the floor is planted
@@ -101,3 +101,30 @@ def spread(variants):
     pairs = [np.linalg.norm(variants[a] - variants[b], axis=-1).mean()
              for a in range(count) for b in range(a + 1, count)]
     return float(np.mean(pairs)) if pairs else 0.0
+
+
+def _dense(path, spacing=0.01):
+    """A polyline (P, 2) resampled every ``spacing`` metres, with its unit tangents: ((N, 2), (N, 2))."""
+    lengths = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=-1))]
+    at = np.linspace(0.0, lengths[-1], max(2, int(lengths[-1] / spacing) + 1))
+    points = np.column_stack([np.interp(at, lengths, path[:, axis]) for axis in range(2)])
+    tangents = np.gradient(points, axis=0)
+    return points, tangents / np.maximum(np.linalg.norm(tangents, axis=-1, keepdims=True), 1e-9)
+
+
+def path_following(joints, path):
+    """How a walk follows a ground path (P, 3): (farthest the hips stray from the path horizontally
+    (m), per frame the facing's angle from the path's tangent nearest the hips (F,), degrees)."""
+    points, tangents = _dense(np.asarray(path)[:, :2])
+    hips = joints[:, J["Hip"], :2]
+    distances = np.linalg.norm(hips[:, None] - points[None], axis=-1)  # (F, N)
+    nearest = distances.argmin(axis=1)
+    forward = facing(joints)[:, :2]
+    cosine = np.sum(forward * tangents[nearest], axis=-1) / np.maximum(np.linalg.norm(forward, axis=-1), 1e-9)
+    return float(distances.min(axis=1).max()), np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))
+
+
+def hip_height_share(joints, floor):
+    """The hips' lowest height above the floor over their height at the first frame (standing)."""
+    height = joints[:, J["Hip"], 2] - floor
+    return float(height.min() / height[0])

@@ -17,9 +17,11 @@ what the add-on ships for every generation: the diverse sampler's and the
 prior's draws (5K each), screened and spread by ``selection`` (it runs when
 the sampler's weights exist). Its pool of 10K draws costs five plain
 samplings, so by default it runs at k = 0 only (``--sampler-k 0 1 2 3 4``
-measures it at every k, in about three times as long). ``--limits`` names the
-joint-angle limits (default: the shipped ones), so models trained on
-different data are measured alike.
+measures it at every k, in about three times as long). ``--weights DIR``
+evaluates a weights folder (as ``train --out DIR`` writes it) and, on the same
+windows, the bundled weights ("bundled:" rows) unless ``--no-compare``;
+``--limits`` names the joint-angle limits (default: the folder's), so models
+trained on different data are measured alike.
 """
 
 import argparse
@@ -32,7 +34,7 @@ import numpy as np
 import torch
 
 from . import baselines, masks, metrics, realism, weights
-from .data import clips, dataset
+from .data import clips, dataset, profiles
 from .sampler import prior_motions, sample_motions
 
 METHODS = ("trajevae", "trajevae_mean", "sampler", "pinned_pose", "nearest_neighbour")
@@ -121,14 +123,18 @@ def format_table(results, truth):
     return "\n".join(lines)
 
 
+COMPARED = ("trajevae", "sampler")  # the bundled weights' rows beside another folder's
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m model_runtime.evaluate", description=__doc__)
     parser.add_argument("--data", nargs="+", help="BVH files or folders (default: the validation subjects)")
+    parser.add_argument("--mapping", nargs="+", default=[], help="mapping files for --data (as for training)")
     parser.add_argument("--samples", type=int, default=50, help="K samples per condition")
     parser.add_argument("--stride", type=int, default=20, help="frames between window starts")
-    parser.add_argument("--weights", default=str(weights.MODEL_WEIGHTS))
-    parser.add_argument("--sampler", default=str(weights.SAMPLER_WEIGHTS))
-    parser.add_argument("--limits", default=str(realism.ANGLE_LIMITS), help="joint-angle limits (JSON)")
+    parser.add_argument("--weights", default=str(weights.ASSETS), help="weights folder (default: the bundled)")
+    parser.add_argument("--no-compare", action="store_true", help="leave out the bundled weights' rows")
+    parser.add_argument("--limits", help="joint-angle limits (JSON; default: the weights folder's)")
     parser.add_argument("--sampler-k", type=int, nargs="+", default=[0], help="k at which the sampler runs")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", help="write the results here as JSON")
@@ -136,11 +142,18 @@ def main(argv=None):
     started = time.time()
     torch.manual_seed(args.seed)
 
-    model, _ = weights.load_model(args.weights)
-    all_clips, _ = dataset.load_clips(dataset.DATA_ROOTS)
-    train_clips, validation_clips = dataset.split_by_subject(all_clips, dataset.read_manifest())
+    folder = Path(args.weights)
+    limits = Path(args.limits) if args.limits else folder / weights.LIMITS_FILE
+    compared = not args.no_compare and folder.resolve() != weights.ASSETS.resolve()
+    model, _ = weights.load_model(weights.model_file(folder))
+    train_clips, validation_clips = dataset.split_by_subject(dataset.load_clips(dataset.DATA_ROOTS)[0],
+                                                             dataset.read_manifest())
     if args.data:
-        eval_clips, errors = dataset.load_clips(args.data)
+        try:
+            custom = tuple(profiles.read_mapping(path) for path in args.mapping)
+        except ValueError as error:
+            parser.error(str(error))
+        eval_clips, errors = dataset.load_clips(args.data, custom=custom)
         for error in errors:
             print(f"skipped: {error}", file=sys.stderr)
     else:
@@ -151,12 +164,14 @@ def main(argv=None):
         return 1
     neighbours = baselines.NearestNeighbour(dataset.windows(train_clips, future=model.config.frames, stride=5))
     print(f"{len(windows)} windows from {len(eval_clips)} clips, K = {args.samples}", flush=True)
-    diverse_sampler = weights.load_sampler(args.sampler)[0] if Path(args.sampler).exists() else None
-    if diverse_sampler is None:
-        print(f"no sampler weights at {args.sampler}: method 'sampler' skipped", file=sys.stderr)
-    results, truth = evaluate(windows, model, neighbours, args.samples, args.seed,
-                              diverse_sampler=diverse_sampler, progress=lambda line: print(line, flush=True),
-                              limits_path=args.limits, sampler_k=args.sampler_k)
+    say = lambda line: print(line, flush=True)
+    results, truth = evaluate(windows, model, neighbours, args.samples, args.seed, METHODS, _sampler(folder), say,
+                              limits, args.sampler_k)
+    if compared:
+        say("the bundled weights on the same windows:")
+        bundled = evaluate(windows, weights.load_model()[0], neighbours, args.samples, args.seed, COMPARED,
+                           _sampler(weights.ASSETS), say, limits, args.sampler_k)[0]
+        results.update({"bundled:" + method: rows for method, rows in bundled.items()})
     seconds = time.time() - started
     print(format_table(results, truth))
     print(f"{len(windows)} windows in {seconds:.1f} s")
@@ -165,6 +180,15 @@ def main(argv=None):
             json.dump({"methods": {method: {"k": by_k} for method, by_k in results.items()}, "ground_truth": truth,
                        "windows": len(windows), "samples": args.samples, "seconds": round(seconds, 1)}, handle, indent=1)
     return 0
+
+
+def _sampler(folder):
+    """The folder's diverse sampler, or None (said) where it has none."""
+    path = Path(folder) / weights.SAMPLER_FILE
+    if not path.exists():
+        print(f"no sampler weights at {path}: method 'sampler' skipped", file=sys.stderr)
+        return None
+    return weights.load_sampler(path)[0]
 
 
 if __name__ == "__main__":

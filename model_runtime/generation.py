@@ -149,19 +149,55 @@ def eased(progress, ease):
                     np.where(rest < ease, 1.0 - top * rest ** 2 / (2 * ease), top * (progress - ease / 2)))
 
 
-def curve_samples(points, frames, span, times=None, ease=0.0):
+class Stepping:
+    """The timing of a foot path of ``length`` metres drawn on the floor without drawing times,
+    covered in ``seconds``: strides as long as people take at that speed, the foot planted for all
+    but ``SWING_SHARE`` of each stride and swinging between plants with an ease in and out, lifted
+    ``FOOT_LIFT_M`` at mid-swing. ``phase`` (a share of a stride) delays its swings: the left foot
+    swings half a stride after the right."""
+
+    # A foot's travel per stride at a speed v (m/s): about STRIDE_M + STRIDE_PER_SPEED_S * v
+    # (1.4 m at a 1.4 m/s walk, 1 m at a stroll).
+    STRIDE_M, STRIDE_PER_SPEED_S = 0.6, 0.55
+    SHORTEST_PATH_M = 1.0  # a foot path shorter than this is not a walk
+    SWING_SHARE = 0.4  # of each stride, the foot in the air (a walk: 40 %, with double support)
+    FOOT_LIFT_M = 0.1  # the ankle's lift at mid-swing, heel off to toe clearance
+
+    def __init__(self, length, seconds, phase=0.0):
+        stride = self.STRIDE_M + self.STRIDE_PER_SPEED_S * length / max(seconds, 1e-9)
+        self.strides, self.phase = max(1, round(length / stride)), phase
+
+    def _swing(self, progress):
+        """(strides completed (..,), share of the current swing done (..,) in [0, 1])."""
+        cycle = np.asarray(progress) * self.strides - self.phase
+        whole = np.floor(cycle)
+        return whole, np.clip((cycle - whole) / self.SWING_SHARE, 0.0, 1.0)
+
+    def __call__(self, progress):
+        """Share of the way covered at ``progress`` in [0, 1] of the time."""
+        whole, swing = self._swing(progress)
+        return np.clip((whole + swing * swing * (3.0 - 2.0 * swing)) / self.strides, 0.0, 1.0)
+
+    def lift(self, progress):
+        """The foot's lift above its path (m) at ``progress``: a half sine over each swing."""
+        _, swing = self._swing(progress)
+        return self.FOOT_LIFT_M * np.sin(np.pi * swing)
+
+
+def curve_samples(points, frames, span, times=None, timing=None):
     """Positions (1 + frames, 3) along a polyline (P, 3), uniform in arc length, or in drawing
     time when the points' ``times`` (P,) are given.
 
-    Frame m sits at fraction min(m / span, 1) of the way: ``span`` (model
-    frames, possibly fractional) is where the scene's last frame falls. ``ease``
-    (a share of the span, at most 0.5) speeds up from rest over that share at
-    the start and slows to rest over it at the end (a walk starting and
-    stopping), at constant speed between.
+    Frame m sits at fraction min(m / span, 1) of the time: ``span`` (model
+    frames, possibly fractional) is where the scene's last frame falls.
+    ``timing`` maps that fraction to the share of the way covered (``eased``: a
+    walk starting and stopping; ``Stepping``: a foot's plants and swings);
+    none: at constant speed.
     """
     if times is not None:
         lengths = np.asarray(times, dtype=np.float64) - times[0]
     else:
         lengths = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
-    wanted = eased(np.clip(np.arange(frames + 1) / max(span, 1e-9), 0.0, 1.0), ease) * lengths[-1]
+    progress = np.clip(np.arange(frames + 1) / max(span, 1e-9), 0.0, 1.0)
+    wanted = (progress if timing is None else timing(progress)) * lengths[-1]
     return np.stack([np.interp(wanted, lengths, points[:, axis]) for axis in range(3)], axis=-1)

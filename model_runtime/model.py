@@ -262,7 +262,7 @@ class TrajeVAE(nn.Module):
         count = 1 if use_mean else count
         mean, std = prior_mean.repeat_interleave(count, 0), torch.exp(0.5 * prior_log_var).repeat_interleave(count, 0)
         noise = torch.zeros_like(mean) if use_mean else torch.randn(
-            mean.shape, generator=generator, dtype=mean.dtype)
+            mean.shape, generator=generator, dtype=mean.dtype).to(mean.device)
         motion = self.decode(mean + scale * std * noise, repeat_encoded(encoded, count))[0]
         motion = motion.view(initial.shape[0], count, *motion.shape[1:])
         return motion if decoded_only else self.complete(motion, initial, trajectories, mask, keep_given)

@@ -1,5 +1,6 @@
-"""``python -m model_runtime.model_card EVALUATION.json``: write assets/MODEL_CARD.md from the
-shipped weights' own facts and an evaluation report, so the card never drifts from the model."""
+"""``python -m model_runtime.model_card [EVALUATION.json] [--weights DIR]``: write a weights folder's
+MODEL_CARD.md (assets/ unless told) from its model's own facts and an evaluation report, so the card
+never drifts from the model. Training writes one without the evaluation."""
 
 import argparse
 import json
@@ -27,8 +28,43 @@ def table(evaluation):
     return "\n".join(rows)
 
 
-def render(meta, evaluation, before=None):
-    config, train = meta["config"], meta["train"]
+def evaluation_section(evaluation, folder):
+    """The card's evaluation text and table, or how to make them."""
+    if evaluation is None:
+        return f"""Not evaluated yet: `python -m model_runtime.evaluate --weights {folder} --data HELD_OUT... --json
+eval.json`, then `python -m model_runtime.model_card eval.json --weights {folder}`."""
+    return f"""{evaluation['windows']} validation windows, K = {evaluation.get('samples', 50)} samples,
+DLow protocol (metres; APD diversity, ADE/FDE best of K, MMADE/MMFDE over pseudo
+ground truths), traj_err = mean distance of conditioned joints to their trajectories,
+MPD = minimum pairwise distance among the K samples; realism: bone_dev = mean rigid
+bone-length deviation from the initial pose (m), angle_out = share of frames outside
+the joint-angle limits fitted on the training poses, skating = mean horizontal foot
+speed while the foot is within 5 cm of the floor (m/s). "trajevae" samples the prior:
+with trajectories given, the {selection.GIVEN_POOL_FACTOR}K draws' most plausible half (least
+bone stretch and straying from the trajectories). "sampler" is what the add-on ships: the
+diverse Gumbel-softmax sampler over the frozen model ({weights.SAMPLER_FILE}), its K variants
+picked from a pool of {selection.POOL_FACTOR}K sampler draws and {selection.PRIOR_POOL_FACTOR}K prior draws (the least
+plausible {selection.SCREENED_SHARE:.0%} dropped, then the widest spacing that typical-first picking
+allows). Rows prefixed "bundled:" are the bundled weights on the same windows.
+k = number of trajectories given, in the order RFoot, LFoot, RWrist, LWrist.
+Run in {evaluation['seconds']:.0f} s with `python -m model_runtime.evaluate`.
+
+{table(evaluation)}"""
+
+
+def _shown(path):
+    """A data path as the README writes it: ../shared/... when beside the repository."""
+    try:
+        return "../" + Path(path).resolve().relative_to(weights.ASSETS.parents[1]).as_posix()
+    except ValueError:
+        return str(path)
+
+
+def render(meta, evaluation=None, before=None, folder=weights.ASSETS):
+    config, train, data = meta["config"], meta["train"], meta["data"]
+    paths = " ".join(map(_shown, data["paths"]))
+    init = meta.get("init")
+    fine_tuned = "" if init is None else f"\nFine-tuned from {init}."
     previous = "" if before is None else f"""
 ### The previous model, measured the same way
 {before.get('label', 'Before')}: {before['windows']} windows, K = {before.get('samples', 50)}, run in {before['seconds']:.0f} s.
@@ -38,8 +74,9 @@ def render(meta, evaluation, before=None):
     return f"""# TrajeVAE model card
 
 Pose completion for motion from trajectories (Kania, Kowalski, Trzcinski), scaled
-for the CPU. File: `assets/trajevae.npz` (plain arrays and a JSON config; no pickled
-code). Reproduce with `python -m model_runtime.train` (then `python -m model_runtime.train_sampler`).
+for the CPU. File: `{weights.MODEL_FILE}` in this folder (plain arrays and a JSON config; no
+pickled code). Reproduce with `python -m model_runtime.train --data {paths}`{'' if init is None else ' --init ' + init}
+(then `python -m model_runtime.train_sampler` with the same data).
 
 ## What it does
 Given an initial pose and any joint coordinates known on any frames (drawn curves, keys,
@@ -56,12 +93,14 @@ moves the other joints to fit what is given (absolute displacements from the dec
 motion with the given joints pinned).
 
 ## Data
-Real optical motion capture in ../shared/mocap and ../shared/mocap-extra (CMU and ACCAD),
-17 canonical joints; 57 minutes, 24 subjects. Validation subjects, never trained on:
-{', '.join(meta['validation_subjects'])} (everyday motion, walks, martial arts).
-Model selection used the validation subjects only (best-of-10 ADE of prior samples
-over the evaluation masks k = 0..4).
+{data['train_clips']} clips ({data['train_minutes']} minutes) of BVH motion capture under {paths},
+mapped to 17 canonical joints; {data['validation_clips']} clips ({data['validation_minutes']} minutes) held out for
+validation and never trained on: {data['validation']}. Model selection used them only
+(best-of-10 ADE of prior samples over the evaluation masks k = 0..4).{fine_tuned}
 
+The bundled weights were trained on real optical capture of ../shared/mocap and
+../shared/mocap-extra (CMU and ACCAD, 24 subjects; validation subjects CMU 02 everyday
+motion, CMU 08 walks, ACCAD Male2 martial arts):
 {ATTRIBUTION}
 
 ## Configuration
@@ -85,41 +124,30 @@ Then the second stage: the completion stage alone ({config['completion_layers']}
 {train['seed']} + 1), on the frozen first stage's decodes of posterior samples and, for
 {train['completion_mean_share']:.0%} of each batch, of the prior mean (squared error of the root and of the
 body relative to it, plus the realism terms). Best checkpoint at step {meta['step']} after
-{meta['training_minutes']:.0f} minutes on 2 CPU cores ({meta['first_stage_minutes']:.0f} for the first stage); validation
-best-of-10 ADE {meta['validation_ade_m']:.4f} m.
+{meta['training_minutes']:.0f} minutes in {meta['processes']} process(es) ({meta['first_stage_minutes']:.0f} for the first stage);
+validation best-of-10 ADE {meta['validation_ade_m']:.4f} m.
 
 ## Evaluation
-{evaluation['windows']} validation windows, K = {evaluation.get('samples', 50)} samples,
-DLow protocol (metres; APD diversity, ADE/FDE best of K, MMADE/MMFDE over pseudo
-ground truths), traj_err = mean distance of conditioned joints to their trajectories,
-MPD = minimum pairwise distance among the K samples; realism: bone_dev = mean rigid
-bone-length deviation from the initial pose (m), angle_out = share of frames outside
-the joint-angle limits fitted on the training poses, skating = mean horizontal foot
-speed while the foot is within 5 cm of the floor (m/s). "trajevae" samples the prior:
-with trajectories given, the {selection.GIVEN_POOL_FACTOR}K draws' most plausible half (least
-bone stretch and straying from the trajectories). "sampler" is what the add-on ships: the
-diverse Gumbel-softmax sampler over the frozen model (assets/sampler.npz), its K variants
-picked from a pool of {selection.POOL_FACTOR}K sampler draws and {selection.PRIOR_POOL_FACTOR}K prior draws (the least
-plausible {selection.SCREENED_SHARE:.0%} dropped, then the widest spacing that typical-first picking
-allows).
-k = number of trajectories given, in the order RFoot, LFoot, RWrist, LWrist.
-Run in {evaluation['seconds']:.0f} s with `python -m model_runtime.evaluate`.
-
-{table(evaluation)}
+{evaluation_section(evaluation, folder)}
 {previous}"""
+
+
+def write(folder, evaluation=None, before=None):
+    """MODEL_CARD.md in the weights ``folder``, from its model's meta and the evaluation dicts."""
+    folder = Path(folder)
+    _, meta = weights.load_state(folder / weights.MODEL_FILE)
+    (folder / weights.CARD_FILE).write_text(render(meta, evaluation, before, folder))
+    return folder / weights.CARD_FILE
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m model_runtime.model_card")
-    parser.add_argument("evaluation", help="JSON written by model_runtime.evaluate --json")
-    parser.add_argument("--out", default=str(weights.ASSETS / "MODEL_CARD.md"))
+    parser.add_argument("evaluation", nargs="?", help="JSON written by model_runtime.evaluate --json")
+    parser.add_argument("--weights", default=str(weights.ASSETS), help="the weights folder whose card is written")
     parser.add_argument("--before", help="an earlier model's evaluation JSON, shown beside (its 'label' says which)")
     args = parser.parse_args(argv)
-    _, meta = weights.load_model()
-    evaluation = json.loads(Path(args.evaluation).read_text())
-    before = json.loads(Path(args.before).read_text()) if args.before else None
-    Path(args.out).write_text(render(meta, evaluation, before))
-    print(f"wrote {args.out}")
+    read = lambda path: json.loads(Path(path).read_text()) if path else None
+    print(f"wrote {write(args.weights, read(args.evaluation), read(args.before))}")
     return 0
 
 

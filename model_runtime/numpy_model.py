@@ -131,8 +131,8 @@ class _Weights:
 class NumpyTrajeVAE:
     """Prior and decoder of TrajeVAE; arrays as in ``model.TrajeVAE`` (float32)."""
 
-    def __init__(self, path):
-        arrays, self.meta = load_arrays(path)
+    def __init__(self, path, remedy=REINSTALL):
+        arrays, self.meta = load_arrays(path, remedy)
         self.config = self.meta["config"]
         first, latent = arrays["decoder_input.0.weight"], self.config["latent"]  # split as in model.TrajeVAE.prior
         arrays["decoder_input.0.weight_latent"] = np.ascontiguousarray(first[:, :latent])
@@ -264,8 +264,8 @@ def _given_steps(initial, trajectories, mask):
 class NumpySampler:
     """The diverse sampler's latents, as ``sampler.DiverseSampler.latents`` in eval mode."""
 
-    def __init__(self, path):
-        arrays, self.meta = load_arrays(path)
+    def __init__(self, path, remedy=REINSTALL):
+        arrays, self.meta = load_arrays(path, remedy)
         self.config = self.meta["config"]
         self.weights = _Weights(arrays)
 
@@ -290,3 +290,46 @@ class NumpySampler:
         standard = mean + np.exp(0.5 * log_var) * rng.standard_normal(mean.shape)
         standard = standard.reshape(batch, count, *prior_mean.shape[1:])
         return (prior_mean[:, None] + scale * np.exp(0.5 * prior_log_var)[:, None] * standard).astype(np.float32)
+
+
+MODEL_FILE, SAMPLER_FILE = "trajevae.npz", "sampler.npz"  # in a weights folder (as ``weights`` names them)
+# What a network whose arrays do not fit its configuration raises on its first run.
+_MISFIT = (KeyError, ValueError, IndexError, TypeError)
+
+
+def load_folder(folder, remedy=REINSTALL):
+    """(model, sampler or None) of a weights folder, each checked by a trial run of one condition:
+    arrays that do not fit the configuration, a sampler made for another model, or non-finite
+    numbers raise WeightsError (one sentence naming the folder)."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise WeightsError(f"the weights folder {folder} does not exist")
+    model = _tried(lambda: NumpyTrajeVAE(folder / MODEL_FILE, remedy), None,
+                   f"the model in {folder} ({MODEL_FILE})", "does not fit its own configuration", remedy)
+    sampler = None
+    if (folder / SAMPLER_FILE).exists():
+        sampler = _tried(lambda: NumpySampler(folder / SAMPLER_FILE, remedy), model,
+                         f"the diverse sampler in {folder} ({SAMPLER_FILE})", "was not trained for its model", remedy)
+    return model, sampler
+
+
+def _tried(load, model, name, misfit, remedy):
+    """The network ``load`` gives, after one trial sampling (with ``model``'s prior where it is a
+    sampler); WeightsError saying ``name`` and ``misfit`` where it fails, or that it holds
+    non-finite numbers."""
+    try:
+        network = load()
+        trial = model or network
+        frames = trial.config["frames"]
+        motion, planted = trial.sample(np.zeros((1, NUM_JOINTS, 3), np.float32),
+                                       np.zeros((1, frames, NUM_JOINTS, 3), np.float32),
+                                       np.zeros((1, frames, NUM_JOINTS), np.float32), 2, np.random.default_rng(0),
+                                       sampler=network if model else None)
+    except WeightsError:
+        raise
+    except _MISFIT as error:
+        raise WeightsError(f"{name} {misfit} ({type(error).__name__}: {error}); {remedy}") from None
+    arrays = network.weights.arrays.values()
+    if not (np.isfinite(motion).all() and np.isfinite(planted).all() and all(np.isfinite(a).all() for a in arrays)):
+        raise WeightsError(f"{name} holds non-finite numbers; {remedy}")
+    return network

@@ -70,8 +70,12 @@ def fit_angle_limits(poses, low=0.1, high=99.9):
 
 
 def load_angle_limits(path=ANGLE_LIMITS):
-    """(low, high) tensors (16,) of the shipped ranges."""
-    limits = json.loads(Path(path).read_text())
+    """(low, high) tensors (16,) of the ranges in a JSON file (the shipped ones unless told)."""
+    return angle_limit_tensors(json.loads(Path(path).read_text()))
+
+
+def angle_limit_tensors(limits):
+    """(low, high) tensors (16,) of limits as ``fit_angle_limits`` gives them."""
     assert limits["names"] == list(ANGLE_NAMES), "angle limits were fitted for other angles"
     return torch.tensor(limits["low"]), torch.tensor(limits["high"])
 

@@ -53,7 +53,8 @@ class DiverseSampler(nn.Module):
         batch = prior_mean.shape[0]
         features = self.condition(torch.cat([prior_mean.flatten(1), prior_log_var.flatten(1)], dim=-1))
         bases = self.bases(features).view(batch, self.config.bases, self.config.base_width)
-        uniform = torch.rand((batch, count, self.config.bases), generator=generator).clamp(1e-9, 1 - 1e-9)
+        uniform = torch.rand((batch, count, self.config.bases), generator=generator).to(features.device)
+        uniform = uniform.clamp(1e-9, 1 - 1e-9)
         gumbel = -torch.log(-torch.log(uniform))
         weights = torch.softmax(gumbel / self.config.temperature, dim=-1)  # constant (uniform) logits
         points = (weights @ bases).flatten(0, 1)
@@ -64,11 +65,17 @@ class DiverseSampler(nn.Module):
     def latents(self, prior_mean, prior_log_var, count, generator=None):
         """z (B * count, K, latent) for the TrajeVAE decoder, and the standardised (mean, log_var)."""
         mean, log_var = self(prior_mean, prior_log_var, count, generator)
-        noise = torch.randn(mean.shape, generator=generator, dtype=mean.dtype)
-        standard = mean + torch.exp(0.5 * log_var) * noise
-        shape = prior_mean.shape
-        z = (prior_mean[:, None] + torch.exp(0.5 * prior_log_var)[:, None] * standard.view(shape[0], count, *shape[1:]))
-        return z.flatten(0, 1), (mean, log_var)
+        return in_prior_space(prior_mean, prior_log_var, mean, log_var, generator), (mean, log_var)
+
+
+def in_prior_space(prior_mean, prior_log_var, mean, log_var, generator=None):
+    """z (B * count, K, latent): a draw of the standardised Gaussians (mean, log_var) (B, count,
+    latent_size) that ``DiverseSampler`` gives, in the prior's space (B, K, latent)."""
+    noise = torch.randn(mean.shape, generator=generator, dtype=mean.dtype).to(mean.device)
+    standard = mean + torch.exp(0.5 * log_var) * noise
+    shape = prior_mean.shape
+    z = prior_mean[:, None] + torch.exp(0.5 * prior_log_var)[:, None] * standard.view(shape[0], mean.shape[1], *shape[1:])
+    return z.flatten(0, 1)
 
 
 def prior_motions(model, initial, trajectories, mask, count, generator=None):

@@ -16,6 +16,7 @@ armature's space with each frame's inverse world matrix (a rig carried by a
 moving parent follows its curves in world space).
 """
 
+import functools
 import math
 import numbers
 from dataclasses import dataclass, field
@@ -23,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import cleanup, generation, retarget
-from .skeleton import JOINT_INDEX, NUM_JOINTS
+from .skeleton import FEET, JOINT_INDEX, NUM_JOINTS
 
 J = JOINT_INDEX
 
@@ -43,6 +44,9 @@ COMPARED_FRAMES = 300
 # rest and slows to rest over GROUND_EASE_S at either end.
 GROUND_PATH_HEIGHT = 0.5
 GROUND_EASE_S = 0.5
+# A foot curve drawn without times whose mean height over the floor is under this, at least
+# ``generation.Stepping.SHORTEST_PATH_M`` long, is a path of footsteps: the foot plants and swings along it (``foot_stepping``).
+FOOT_PATH_HEIGHT_M = 0.15
 # Share of ``run``'s progress spent in the networks; the retarget takes the rest.
 INFERENCE_SHARE = 0.75
 
@@ -147,16 +151,47 @@ def model_input(request):
             for joint, position in keyed[index].items():
                 trajectories[step - 1, J[joint]], mask[step - 1, J[joint]] = position, 1.0
     targets, axes = {}, {}
-    seconds = (len(frames) - 1) / fps
     for joint, (points, times) in request.curves.items():
         ground = joint == "Hip" and on_the_ground(request, points)
-        ease = min(GROUND_EASE_S / max(seconds, 1e-9), 0.5) if ground and times is None else 0.0
         axes[joint] = np.array([True, True, not ground])
-        trajectories[:, J[joint]] = placement.to_model(generation.curve_samples(points, steps, span, times, ease)[1:])
+        trajectories[:, J[joint]] = placement.to_model(path_samples(request, joint, steps, span)[1:])
         mask[:, J[joint]] = axes[joint]
-        targets[joint] = generation.curve_samples(points, len(frames) - 1, len(frames) - 1, times, ease)
+        targets[joint] = path_samples(request, joint, len(frames) - 1, len(frames) - 1)
     return ModelInput(placement, placement.to_model(request.start_joints), trajectories, mask, targets, axes,
                       keyed)
+
+
+def path_samples(request, joint, count, span):
+    """Where a joint's curve puts it on 1 + ``count`` frames, ``span`` of them to the shot's end
+    (world units, (1 + count, 3)). Drawn without times, a ground path speeds up from rest and slows
+    to rest over GROUND_EASE_S at either end, and a foot path on the floor steps
+    (``foot_stepping``); otherwise the curve is followed at its drawing speed, or uniformly."""
+    points, times = request.curves[joint]
+    seconds = (len(request.frames) - 1) / request.fps
+    stepping = foot_stepping(request, joint) if times is None else None
+    timing = stepping
+    if times is None and joint == "Hip" and on_the_ground(request, points):
+        timing = functools.partial(generation.eased, ease=min(GROUND_EASE_S / max(seconds, 1e-9), 0.5))
+    samples = generation.curve_samples(points, count, span, times, timing)
+    if stepping is not None:  # the ankle at its standing height over the path, lifted in each swing
+        progress = np.clip(np.arange(count + 1) / max(span, 1e-9), 0.0, 1.0)
+        samples[:, 2] = request.start_joints[J[joint], 2] + stepping.lift(progress) / request.metres_per_unit
+    return samples
+
+
+def foot_stepping(request, joint):
+    """The ``generation.Stepping`` of a foot path drawn on the floor (mean height within
+    FOOT_PATH_HEIGHT_M of it) long enough to walk, else None: a foot would glide along it at
+    constant speed. The left foot swings half a stride after the right."""
+    if joint not in FEET:
+        return None
+    points = request.curves[joint][0] * request.metres_per_unit
+    length = float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
+    height = float(np.mean(points[:, 2])) - request.floor * request.metres_per_unit
+    if length < generation.Stepping.SHORTEST_PATH_M or height > FOOT_PATH_HEIGHT_M:
+        return None
+    seconds = (len(request.frames) - 1) / request.fps
+    return generation.Stepping(length, seconds, phase=0.5 if joint == "LFoot" else 0.0)
 
 
 def on_the_ground(request, points):

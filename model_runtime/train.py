@@ -1,4 +1,4 @@
-"""``python -m model_runtime.train``: train TrajeVAE on the shared motion capture, on the CPU.
+"""``python -m model_runtime.train``: train TrajeVAE on motion capture, on the CPU or GPUs.
 
 Two stages. The first trains the network of the paper (encoders, prior,
 posterior, decoder) with GSPS's realism terms and foot contacts: the decoder
@@ -8,17 +8,24 @@ below the window's floor, and poses stay within the joint-angle limits fitted
 on the training poses and keep their bone lengths, on the posterior
 reconstruction and on one prior sample per window (the prior sample's planted
 feet are those it predicts itself). A share of windows starts from a rest
-pose (``augment.rest_start``), as the add-on's rigs do. The second trains the completion stage alone
-(``TrajeVAE.complete``) on the frozen first stage's decodes (posterior
-reconstructions, and for a share of each batch the prior mean's decode), with
-its own seed, so it can start from a first stage's saved weights (``--init``)
-exactly as it would in one run. Fixed seed, random turns about Z and
-mirroring, checkpoints with resume, and model selection on the validation
-subjects only (best-of-10 ADE of prior samples over the evaluation masks
+pose (``augment.rest_start``), as the add-on's rigs do. The second trains the
+completion stage alone (``TrajeVAE.complete``) on the frozen first stage's
+decodes (posterior reconstructions, and for a share of each batch the prior
+mean's decode). Each step's random draws come from the seed, the stage and
+the step (``distributed.Processes.rng``), so a run resumes exactly from its
+checkpoint, with any number of processes, and a second stage started from a
+first stage's saved weights (``--init W --steps 0``) is the one a whole run
+makes. Random turns about Z and mirroring; model selection on the validation
+clips only (best-of-10 ADE of prior samples over the evaluation masks
 k = 0..4, the quantity the evaluation reports; the prior mean's error rewards
 standing still). The first stage's learning rate follows cosine cycles with
 warm restarts, so a longer run continues a shorter one's checkpoint exactly.
-The best model is written to assets/trajevae.npz.
+
+The data: ../shared's CMU and ACCAD capture by default, or any BVH files and
+folders (``--data``, ``--validation``, ``--mapping``: ``dataset.add_data_arguments``);
+``--init`` fine-tunes given weights. The best model, the joint-angle limits and a
+model card go to the weights folder ``--out`` (assets/ by default). Under
+torchrun the same command trains data-parallel (``distributed``).
 """
 
 import argparse
@@ -32,7 +39,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from . import augment, checkpoints, masks, metrics, realism, weights
+from . import augment, checkpoints, distributed, masks, metrics, model_card, realism, weights
 from .contacts import foot_contacts
 from .data import clips, dataset
 from .model import ModelConfig, TrajeVAE, kl_divergence, parameter_count
@@ -41,14 +48,14 @@ from .skeleton import FEET, indices, rigid_bone_lengths
 
 @dataclass(frozen=True)
 class TrainConfig:
-    steps: int = 6000  # first stage
-    completion_steps: int = 1500  # second stage: the completion stage alone
+    steps: int = 4500  # first stage
+    completion_steps: int = 1000  # second stage: the completion stage alone
     completion_learning_rate: float = 3e-4  # warm-up, then one cosine decay
     completion_mean_share: float = 0.25  # of each second-stage batch, decoded from the prior mean
     batch: int = 64
     learning_rate: float = 4e-4
     warmup: int = 300
-    cycle: int = 6000  # steps per cosine cycle
+    cycle: int = 4500  # steps per cosine cycle
     restart_peak: float = 0.5  # each restart's peak relative to the previous one's
     beta: float = 0.01  # KL weight, the paper's
     bone_weight: float = 1.0  # rigid bones keep the initial pose's lengths
@@ -148,9 +155,22 @@ def losses(model, initial, future, mask, contacts, limits, config):
     return total, parts
 
 
-def completion_losses(model, initial, future, mask, contacts, limits, config):
+class CompletionStage(torch.nn.Module):
+    """The completion stage as a module of its own, so the second stage's data-parallel wrapper
+    averages just its gradients."""
+
+    def __init__(self, model):
+        super().__init__()
+        self.model = model
+
+    def forward(self, decoded, initial, given, mask):
+        return self.model.complete(decoded, initial, given, mask)
+
+
+def completion_losses(model, completion, initial, future, mask, contacts, limits, config):
     """Second-stage loss: ``root_and_body_error`` plus the realism terms of the completed decodings
-    (planted feet: the labels), with the first stage frozen and without dropout.
+    (planted feet: the labels), with the first stage frozen and without dropout; ``completion`` is
+    the model's ``CompletionStage`` (as ``distributed.Processes.parallel`` wraps it).
 
     Most of the batch is decoded from posterior samples; ``completion_mean_share`` of it from
     the prior mean, the model's point prediction, which the stage otherwise never sees (trained on
@@ -166,7 +186,7 @@ def completion_losses(model, initial, future, mask, contacts, limits, config):
             decoded[:means] = model.sample(initial[:means], given[:means], mask[:means], 1, use_mean=True,
                                            decoded_only=True)[:, 0]
     model.train()
-    completed = model.complete(decoded[:, None], initial, given, mask)[:, 0]
+    completed = completion(decoded[:, None], initial, given, mask)[:, 0]
     error = root_and_body_error(completed, future).mean()
     terms = realism_terms(completed, initial, future, contacts, limits)
     return error + weighted_realism(terms, config), {"completion": error.item(),
@@ -182,10 +202,11 @@ def root_and_body_error(motion, truth):
     return (torch.cat([root, difference[..., 1:, :] - root], dim=-2) ** 2).flatten(1).sum(-1)
 
 
-def freeze_first_stage(model):
-    """Only the completion stage trains in the second stage."""
+def train_stage(model, stage):
+    """Make the stage's parameters the trainable ones: all but the completion stage in the first,
+    the completion stage alone in the second."""
     for name, parameter in model.named_parameters():
-        parameter.requires_grad_(name.startswith("completion_"))
+        parameter.requires_grad_(name.startswith("completion_") == (stage == 2))
 
 
 def stage_learning_rate(step, config):
@@ -204,13 +225,14 @@ def validate(model, windows, mask, samples=10, batch=64, seed=0):
     """
     model.eval()
     generator = torch.Generator().manual_seed(seed)
+    device = next(model.parameters()).device
     errors = []
     for start in range(0, len(windows), batch):
-        motion = torch.from_numpy(windows[start:start + batch])
-        known = torch.from_numpy(mask[start:start + batch])
+        motion = torch.from_numpy(windows[start:start + batch]).to(device)
+        known = torch.from_numpy(mask[start:start + batch]).to(device)
         initial, future = motion[:, 0], motion[:, 1:]
-        predictions = model.sample(initial, future * known[..., None], known, samples, generator=generator)
-        truth = torch.from_numpy(metrics.to_protocol(future.numpy()))
+        predictions = model.sample(initial, future * known[..., None], known, samples, generator=generator).cpu()
+        truth = torch.from_numpy(metrics.to_protocol(future.cpu().numpy()))
         distance = torch.linalg.norm(torch.from_numpy(metrics.to_protocol(predictions.numpy())) - truth[:, None],
                                      dim=-1)  # (B, samples, T)
         errors.append(distance.mean(-1).min(-1).values)
@@ -231,100 +253,116 @@ def learning_rate(step, peak, warmup, cycle, restart_peak=0.5):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m model_runtime.train", description=__doc__)
-    parser.add_argument("--data", nargs="+", default=[str(root) for root in dataset.DATA_ROOTS])
+    dataset.add_data_arguments(parser)
+    parser.add_argument("--out", default=str(weights.ASSETS),
+                        help=f"weights folder: {weights.MODEL_FILE}, {weights.LIMITS_FILE} and {weights.CARD_FILE} go here")
+    parser.add_argument("--init", help="weights folder (or its .npz) to fine-tune from")
     parser.add_argument("--steps", type=int, default=TrainConfig.steps, help="first-stage steps")
     parser.add_argument("--completion-steps", type=int, default=TrainConfig.completion_steps)
-    parser.add_argument("--init", help="first-stage weights (.npz from this command) to start the second stage from")
-    parser.add_argument("--batch", type=int, default=TrainConfig.batch)
+    parser.add_argument("--batch", type=int, default=TrainConfig.batch, help="windows per process and step")
+    parser.add_argument("--learning-rate", type=float, default=TrainConfig.learning_rate, help="first-stage peak")
+    parser.add_argument("--warmup", type=int, default=TrainConfig.warmup, help="first-stage warm-up steps")
     parser.add_argument("--seed", type=int, default=TrainConfig.seed)
-    parser.add_argument("--out", default=str(weights.MODEL_WEIGHTS), help="where the best model goes")
-    parser.add_argument("--limits", default=str(realism.ANGLE_LIMITS),
-                        help="where the joint-angle limits fitted on the training poses go")
-    parser.add_argument("--checkpoint", default=str(checkpoints.default_path("trajevae")))
+    parser.add_argument("--checkpoint", help="default: one per --out folder in ~/.cache/trajevae/checkpoints")
     parser.add_argument("--fresh", action="store_true", help="ignore an existing checkpoint")
-    parser.add_argument("--threads", type=int, default=0, help="torch threads (0: all cores)")
-    args = parser.parse_args(argv)
-    config = TrainConfig(steps=args.steps, completion_steps=args.completion_steps, batch=args.batch, seed=args.seed)
+    parser.add_argument("--threads", type=int, default=0, help="torch threads per process (0: torch's choice)")
+    parser.add_argument("--log-every", type=int, default=50, help="steps between progress lines")
+    parser.add_argument("--validate-every", type=int, default=TrainConfig.validate_every)
+    return distributed.run(_train, parser, parser.parse_args(argv))
+
+
+def _train(parser, args, processes):
+    config = TrainConfig(steps=args.steps, completion_steps=args.completion_steps, batch=args.batch,
+                         learning_rate=args.learning_rate, warmup=args.warmup, seed=args.seed,
+                         validate_every=args.validate_every)
     model_config = ModelConfig()
     if args.threads:
         torch.set_num_threads(args.threads)
+    out = Path(args.out)
+    checkpoint = args.checkpoint or checkpoints.default_path("trajevae", out)
 
-    clips, errors = dataset.load_clips(args.data)
-    for error in errors:
-        print(f"skipped: {error}", file=sys.stderr)
-    manifest = dataset.read_manifest()
-    train_clips, validation_clips = dataset.split_by_subject(clips, manifest)
-    sampler = WindowSampler(train_clips, model_config.frames)
-    Path(args.limits).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.limits).write_text(json.dumps(realism.fit_angle_limits(sampler.motion), indent=1))
-    limits = realism.load_angle_limits(args.limits)
-    val_windows, val_mask = validation_set(validation_clips, model_config.frames)
-    print(f"training windows {len(sampler)} from {len(train_clips)} clips; "
-          f"validation windows {len(val_windows)} from {len(validation_clips)} clips "
-          f"({', '.join(dataset.VALIDATION_SUBJECTS)})", flush=True)
+    split = dataset.split_from_arguments(parser, args)
+    sampler = WindowSampler(split.train, model_config.frames)
+    fitted = realism.fit_angle_limits(sampler.motion)
+    limits = realism.angle_limit_tensors(fitted)
+    val_windows, val_mask = validation_set(split.validation, model_config.frames)
+    processes.say(f"training windows {len(sampler)} from {len(split.train)} clips; validation windows "
+                  f"{len(val_windows)} from {len(split.validation)} clips ({split.validation_rule}); "
+                  f"{processes.world} process(es), global batch {config.batch * processes.world}; checkpoint {checkpoint}")
+    if processes.main:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / weights.LIMITS_FILE).write_text(json.dumps(fitted, indent=1))
 
     torch.manual_seed(config.seed)
-    rng = np.random.default_rng(config.seed)
-    model = TrajeVAE(model_config)
+    model = TrajeVAE(model_config).to(processes.device)
     optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate, betas=(0.9, 0.99))
-    print(f"TrajeVAE {parameter_count(model):,} parameters; {model_config}", flush=True)
-    run = checkpoints.RunState(args.checkpoint, model, optimizer, rng)
-    if args.init:
-        state, meta = weights.load_state(args.init)
-        missing, unexpected = model.load_state_dict(
-            {name: value for name, value in state.items() if not name.startswith("completion_")}, strict=False)
-        if unexpected or not all(name.startswith("completion_") for name in missing):
-            parser.error(f"{args.init} is not a TrajeVAE of this configuration")
-        run.step, run.elapsed = config.steps, 60 * (meta.get("first_stage_minutes") or meta["training_minutes"])
-        print(f"second stage from the first stage's weights in {args.init}", flush=True)
-    elif not args.fresh and run.resume():
-        print(f"resumed from {args.checkpoint} at step {run.step}", flush=True)
-    if run.step > config.steps:  # resumed inside the second stage, its random state restored
-        freeze_first_stage(model)
+    processes.say(f"TrajeVAE {parameter_count(model):,} parameters; {model_config}")
+    run = checkpoints.RunState(checkpoint, model, optimizer)
+    if not args.fresh and run.resume(processes):
+        processes.say(f"resumed from {checkpoint} at step {run.step}")
+    elif args.init:
+        state, meta = weights.load_state(weights.model_file(args.init))
+        if meta["config"] != model_config.to_dict():
+            parser.error(f"{args.init} holds a TrajeVAE of another configuration ({meta['config']})")
+        model.load_state_dict(state)
+        processes.say(f"fine-tuning the weights of {args.init}")
 
-    model.train()
-    started, running = time.time() - run.elapsed, {}
+    started, running, interval = time.time() - run.elapsed, {}, []
     total_steps = config.steps + config.completion_steps
     first_stage_minutes = run.elapsed / 60 if run.step >= config.steps else None
-    pace_since = (run.step, run.elapsed)
+    pace_since, checked = (run.step, run.elapsed), 0
+    stage = None
     while run.step < total_steps:
-        if run.step == config.steps:  # the second stage starts from the first stage's weights and its own seed
-            freeze_first_stage(model)
-            rng.bit_generator.state = np.random.default_rng(config.seed + 1).bit_generator.state
-            torch.manual_seed(config.seed + 1)
-            first_stage_minutes, running, pace_since = run.elapsed / 60, {}, (run.step, run.elapsed)
-        motion, mask, contacts = training_batch(sampler, config, model_config.frames, rng)
+        if stage != (1 if run.step < config.steps else 2):  # start or resume a stage: its trainable set, wrapped
+            stage = 1 if run.step < config.steps else 2
+            train_stage(model, stage)
+            trained = processes.parallel(model if stage == 1 else CompletionStage(model))
+            if stage == 2 and first_stage_minutes is None:
+                first_stage_minutes, running, pace_since = run.elapsed / 60, {}, (run.step, run.elapsed)
+        stage_step = run.step - (0 if stage == 1 else config.steps)
+        batch = training_batch(sampler, config, model_config.frames, processes.rng(config.seed, stage, stage_step))
+        motion, mask, contacts = (tensor.to(processes.device) for tensor in batch)
         for group in optimizer.param_groups:
             group["lr"] = stage_learning_rate(run.step, config)
-        stage_losses = losses if run.step < config.steps else completion_losses
-        total, parts = stage_losses(model, motion[:, 0], motion[:, 1:], mask, contacts, limits, config)
+        if stage == 1:
+            total, parts = losses(trained, motion[:, 0], motion[:, 1:], mask, contacts, limits, config)
+        else:
+            total, parts = completion_losses(model, trained, motion[:, 0], motion[:, 1:], mask, contacts, limits, config)
         optimizer.zero_grad()
         total.backward()
         torch.nn.utils.clip_grad_norm_(model.parameters(), 100.0)
         optimizer.step()
-        run.step += 1
+        processes.check_in_step(model, run.step)
+        run.step, checked = run.step + 1, checked + 1
         checkpoints.smooth(running, parts)
+        interval.append(total.item())
         run.elapsed = time.time() - started
         stage_end = run.step in (config.steps, total_steps)
-        if run.step % 50 == 0 or stage_end:
-            print(checkpoints.progress_line(run.step, total_steps, running, run.elapsed, pace_since), flush=True)
-        if run.step % config.validate_every == 0 or stage_end:
+        if run.step % args.log_every == 0 or stage_end:
+            processes.say(checkpoints.progress_line(run.step, total_steps, float(np.mean(interval)), running,
+                                                    run.elapsed, pace_since))
+            interval = []
+        if processes.main and (run.step % config.validate_every == 0 or stage_end):
             error = validate(model, val_windows, val_mask)
             run.history.append({"step": run.step, "validation_ade_m": error, "minutes": run.elapsed / 60})
             marker = ""
             if error < run.best:
                 run.best, marker = error, " (best, saved)"
-                weights.save(args.out, model, model_config, {
+                weights.save(out / weights.MODEL_FILE, model, model_config, {
                     "train": asdict(config), "step": run.step, "validation_ade_m": error,
                     "training_minutes": run.elapsed / 60,
                     "first_stage_minutes": run.elapsed / 60 if first_stage_minutes is None else first_stage_minutes,
-                    "validation_subjects": list(dataset.VALIDATION_SUBJECTS),
+                    "data": split.describe(), "processes": processes.world, "init": args.init,
                     "parameters": parameter_count(model)})
             print(f"validation: best-of-10 ADE {error:.4f} m{marker}", flush=True)
-        if run.step % config.checkpoint_every == 0 or stage_end:
+        if processes.main and (run.step % config.checkpoint_every == 0 or stage_end):
             run.save()
-    print(f"done: {run.step} steps in {run.elapsed / 60:.1f} min, "
-          f"best validation error {run.best:.4f} m -> {args.out}")
+    if processes.world > 1:
+        processes.say(f"{processes.world} processes: weights identical after each of {checked} steps")
+    if processes.main:
+        model_card.write(out)
+        print(f"done: {run.step} steps in {run.elapsed / 60:.1f} min, "
+              f"best validation error {run.best:.4f} m -> {out / weights.MODEL_FILE}", flush=True)
     return 0
 
 

@@ -12,7 +12,9 @@ terms (GSPS joint-angle limits fitted on the training subjects, rigid bone
 lengths, the squared speed of the feet the model predicts planted) so diversity never comes from
 broken poses. Half the conditions have
 no trajectories (the sampler's main use), half have training masks. Model
-selection on the validation subjects; weights to assets/sampler.npz.
+selection on the validation clips; the model, its limits and the sampler's
+weights are in one weights folder (``--weights``, assets/ unless told). Runs
+data-parallel under torchrun as ``train`` does (``distributed``).
 """
 
 import argparse
@@ -26,10 +28,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from . import augment, checkpoints, masks, metrics, realism, weights
+from . import augment, checkpoints, distributed, masks, metrics, realism, weights
 from .data import clips, dataset
 from .model import parameter_count, repeat_encoded
-from .sampler import DiverseSampler, SamplerConfig
+from .sampler import DiverseSampler, SamplerConfig, in_prior_space
 from .skeleton import rigid_bone_lengths
 from .train import WindowSampler, learning_rate
 
@@ -63,7 +65,7 @@ def pairwise_distances(motion):
 
 def nearest_sibling_distances(distances):
     """Each sample's distance to the nearest other sample of its condition: (B, K) from (B, K, K)."""
-    itself = torch.eye(distances.shape[-1], dtype=torch.bool)
+    itself = torch.eye(distances.shape[-1], dtype=torch.bool, device=distances.device)
     return distances.masked_fill(itself, float("inf")).amin(dim=-1)
 
 
@@ -72,12 +74,13 @@ def sampler_losses(model, sampler, initial, future, mask, limits, margins, confi
     margin, duplicate_margin = margins
     count = config.samples
     prior_mean, prior_log_var, encoded = model.prior(initial, future * masks.per_coordinate(mask), mask)
-    z, (mean, log_var) = sampler.latents(prior_mean, prior_log_var, count, generator)
+    mean, log_var = sampler(prior_mean, prior_log_var, count, generator)  # through forward, as DDP needs
+    z = in_prior_space(prior_mean, prior_log_var, mean, log_var, generator)
     motion, contacts = model.decode(z, repeat_encoded(encoded, count))
     motion = motion.view(initial.shape[0], count, *motion.shape[1:])
     planted = torch.sigmoid(contacts.view(*motion.shape[:3], -1)).detach()
     distances = pairwise_distances(motion)
-    upper = torch.triu(torch.ones(count, count, dtype=torch.bool), diagonal=1)
+    upper = torch.triu(torch.ones(count, count, dtype=torch.bool, device=initial.device), diagonal=1)
     diversity = torch.relu(margin - distances[:, upper]).mean() / margin
     duplicate = torch.relu(duplicate_margin - nearest_sibling_distances(distances)).mean() / duplicate_margin
     accuracy = ((motion - future[:, None]) ** 2).sum(-1).mean(dim=(2, 3)).min(dim=1).values.mean()
@@ -98,106 +101,119 @@ def sampler_losses(model, sampler, initial, future, mask, limits, margins, confi
 def plain_diversity(model, windows, count):
     """Mean APD and MPD (DLow protocol) of plain prior sampling with no trajectories over windows
     (N, 1 + T, 17, 3)."""
-    initial, future = torch.from_numpy(windows[:, 0]), torch.from_numpy(windows[:, 1:])
-    empty = torch.zeros(future.shape[:-1])
+    device = next(model.parameters()).device
+    initial, future = torch.from_numpy(windows[:, 0]).to(device), torch.from_numpy(windows[:, 1:]).to(device)
+    empty = torch.zeros(future.shape[:-1], device=device)
     motion = model.sample(initial, future * 0, empty, count, generator=torch.Generator().manual_seed(0),
                           decoded_only=True)
-    samples = [metrics.to_protocol(m) for m in motion.numpy()]
+    samples = [metrics.to_protocol(m) for m in motion.cpu().numpy()]
     return tuple(float(value) for value in np.mean([metrics.diversity(s) for s in samples], axis=0))
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m model_runtime.train_sampler", description=__doc__)
+    dataset.add_data_arguments(parser)
+    parser.add_argument("--weights", default=str(weights.ASSETS),
+                        help=f"weights folder: its {weights.MODEL_FILE} and {weights.LIMITS_FILE} are read, "
+                             f"{weights.SAMPLER_FILE} is written")
     parser.add_argument("--steps", type=int, default=SamplerTrainConfig.steps)
-    parser.add_argument("--batch", type=int, default=SamplerTrainConfig.batch)
+    parser.add_argument("--batch", type=int, default=SamplerTrainConfig.batch, help="conditions per process and step")
     parser.add_argument("--seed", type=int, default=SamplerTrainConfig.seed)
-    parser.add_argument("--model", default=str(weights.MODEL_WEIGHTS))
-    parser.add_argument("--out", default=str(weights.SAMPLER_WEIGHTS))
-    parser.add_argument("--limits", default=str(realism.ANGLE_LIMITS), help="fitted here if missing")
-    parser.add_argument("--checkpoint", default=str(checkpoints.default_path("sampler")))
+    parser.add_argument("--checkpoint", help="default: one per weights folder in ~/.cache/trajevae/checkpoints")
     parser.add_argument("--fresh", action="store_true", help="ignore an existing checkpoint")
+    parser.add_argument("--log-every", type=int, default=50, help="steps between progress lines")
     for field in dataclasses.fields(SamplerTrainConfig):
         if field.type is float:
             parser.add_argument("--" + field.name.replace("_", "-"), type=float, default=field.default)
-    args = parser.parse_args(argv)
+    return distributed.run(_train, parser, parser.parse_args(argv))
+
+
+def _train(parser, args, processes):
     config = SamplerTrainConfig(**{field.name: getattr(args, field.name)
                                    for field in dataclasses.fields(SamplerTrainConfig) if hasattr(args, field.name)})
-
-    model, _ = weights.load_model(args.model)
+    folder = Path(args.weights)
+    checkpoint = args.checkpoint or checkpoints.default_path("sampler", folder)
+    model, _ = weights.load_model(folder / weights.MODEL_FILE)
+    model.to(processes.device)
     for parameter in model.parameters():
         parameter.requires_grad_(False)
-    clips, _ = dataset.load_clips(dataset.DATA_ROOTS)
-    train_clips, validation_clips = dataset.split_by_subject(clips, dataset.read_manifest())
-    if not Path(args.limits).exists():
-        poses = np.concatenate([c.positions for c in train_clips])
-        Path(args.limits).write_text(json.dumps(realism.fit_angle_limits(poses), indent=1))
-        print(f"fitted joint-angle limits on {len(poses)} training poses -> {args.limits}")
-    limits = realism.load_angle_limits(args.limits)
+    split = dataset.split_from_arguments(parser, args)
+    limits_file = folder / weights.LIMITS_FILE
+    if not limits_file.exists():
+        parser.error(f"{limits_file} is missing: the model's training writes it (python -m model_runtime.train --out {folder})")
+    limits = realism.load_angle_limits(limits_file)
     frames = model.config.frames
-    windows = WindowSampler(train_clips, frames)
-    validation = dataset.windows(validation_clips, future=frames, stride=30)
+    windows = WindowSampler(split.train, frames)
+    validation = dataset.windows(split.validation, future=frames, stride=30)
     plain_apd, plain_mpd = plain_diversity(model, validation[:64], config.samples)
     margins = (config.diversity_margin * plain_apd, config.duplicate_margin * plain_mpd)
-    print(f"hinge margins: all pairs {margins[0]:.3f} m ({config.diversity_margin} x plain APD), "
-          f"nearest sibling {margins[1]:.3f} m ({config.duplicate_margin} x plain MPD); "
-          f"{len(validation)} validation windows", flush=True)
+    processes.say(f"hinge margins: all pairs {margins[0]:.3f} m ({config.diversity_margin} x plain APD), "
+                  f"nearest sibling {margins[1]:.3f} m ({config.duplicate_margin} x plain MPD); "
+                  f"{len(validation)} validation windows; {processes.world} process(es), global batch "
+                  f"{config.batch * processes.world}; checkpoint {checkpoint}")
 
     torch.manual_seed(config.seed)
-    rng = np.random.default_rng(config.seed)
     sampler_config = SamplerConfig(latent_size=model.config.dct_keep * model.config.latent)
-    sampler = DiverseSampler(sampler_config)
+    sampler = DiverseSampler(sampler_config).to(processes.device)
     optimizer = torch.optim.Adam(sampler.parameters(), lr=config.learning_rate)
-    print(f"sampler {parameter_count(sampler):,} parameters", flush=True)
-    run = checkpoints.RunState(args.checkpoint, sampler, optimizer, rng)
-    if not args.fresh and run.resume():
-        print(f"resumed from {args.checkpoint} at step {run.step}", flush=True)
+    processes.say(f"sampler {parameter_count(sampler):,} parameters")
+    run = checkpoints.RunState(checkpoint, sampler, optimizer)
+    if not args.fresh and run.resume(processes):
+        processes.say(f"resumed from {checkpoint} at step {run.step}")
+    trained = processes.parallel(sampler)
 
     def validation_loss():
         sampler.eval()
         generator = torch.Generator().manual_seed(1)
         with torch.no_grad():
-            motion = torch.from_numpy(validation)
-            empty = torch.zeros(len(validation), frames, 17)
+            motion = torch.from_numpy(validation).to(processes.device)
+            empty = torch.zeros(len(validation), frames, 17, device=processes.device)
             total, parts = sampler_losses(model, sampler, motion[:, 0], motion[:, 1:], empty, limits,
                                           margins, config, generator)
         sampler.train()
         return total.item(), parts
 
-    started, running = time.time() - run.elapsed, {}
+    started, running, interval, checked = time.time() - run.elapsed, {}, [], 0
     sampler.train()
     while run.step < config.steps:
+        rng = processes.rng(config.seed, 1, run.step)
         motion, _ = windows.sample(config.batch, rng)
         motion = augment.rotate_about_z(motion, rng.uniform(0, 2 * np.pi, config.batch)).astype(np.float32)
         mask = masks.sample_training_masks(config.batch, frames, rng)
         mask[rng.random(config.batch) < config.empty_mask_share] = 0.0
         for group in optimizer.param_groups:
             group["lr"] = learning_rate(run.step, config.learning_rate, config.warmup, config.steps)
-        motion = torch.from_numpy(motion)
-        total, parts = sampler_losses(model, sampler, motion[:, 0], motion[:, 1:], torch.from_numpy(mask),
-                                      limits, margins, config)
+        motion, mask = torch.from_numpy(motion).to(processes.device), torch.from_numpy(mask).to(processes.device)
+        total, parts = sampler_losses(model, trained, motion[:, 0], motion[:, 1:], mask, limits, margins, config)
         optimizer.zero_grad()
         total.backward()
         optimizer.step()
-        run.step += 1
+        processes.check_in_step(sampler, run.step)
+        run.step, checked = run.step + 1, checked + 1
         checkpoints.smooth(running, parts)
+        interval.append(total.item())
         run.elapsed = time.time() - started
-        if run.step % 50 == 0 or run.step == config.steps:
-            print(checkpoints.progress_line(run.step, config.steps, running, run.elapsed), flush=True)
-        if run.step % config.validate_every == 0 or run.step == config.steps:
+        if run.step % args.log_every == 0 or run.step == config.steps:
+            processes.say(checkpoints.progress_line(run.step, config.steps, float(np.mean(interval)), running,
+                                                    run.elapsed))
+            interval = []
+        if processes.main and (run.step % config.validate_every == 0 or run.step == config.steps):
             loss, parts = validation_loss()
             run.history.append({"step": run.step, "validation_loss": loss, **parts})
             marker = ""
             if loss < run.best:
                 run.best, marker = loss, " (best, saved)"
-                weights.save(args.out, sampler, sampler_config, {
+                weights.save(folder / weights.SAMPLER_FILE, sampler, sampler_config, {
                     "train": asdict(config), "step": run.step, "validation_loss": loss,
                     "hinge_margins_m": margins, "training_minutes": run.elapsed / 60,
-                    "parameters": parameter_count(sampler)})
+                    "processes": processes.world, "parameters": parameter_count(sampler)})
             print(f"validation loss {loss:.4f} " + " ".join(f"{k} {v:.3f}" for k, v in parts.items()) + marker,
                   flush=True)
-        if run.step % config.checkpoint_every == 0 or run.step == config.steps:
+        if processes.main and (run.step % config.checkpoint_every == 0 or run.step == config.steps):
             run.save()
-    print(f"done: {run.step} steps in {run.elapsed / 60:.1f} min -> {args.out}")
+    if processes.world > 1:
+        processes.say(f"{processes.world} processes: weights identical after each of {checked} steps")
+    processes.say(f"done: {run.step} steps in {run.elapsed / 60:.1f} min -> {folder / weights.SAMPLER_FILE}")
     return 0
 
 

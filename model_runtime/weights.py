@@ -8,12 +8,21 @@ import torch
 
 from . import numpy_model
 
-ASSETS = Path(__file__).resolve().parents[1] / "assets"
-MODEL_WEIGHTS = ASSETS / "trajevae.npz"
-SAMPLER_WEIGHTS = ASSETS / "sampler.npz"
+# A weights folder: what the add-on needs, as the training commands write it (--out DIR).
+MODEL_FILE, SAMPLER_FILE = numpy_model.MODEL_FILE, numpy_model.SAMPLER_FILE
+LIMITS_FILE, CARD_FILE = "angle_limits.json", "MODEL_CARD.md"
+ASSETS = Path(__file__).resolve().parents[1] / "assets"  # the bundled weights folder
+MODEL_WEIGHTS = ASSETS / MODEL_FILE
+SAMPLER_WEIGHTS = ASSETS / SAMPLER_FILE
 RESTORE = "restore it from the repository (git) or train it again (make train, make train-sampler)"
 # Configuration of model files written before these fields existed: a per-joint mask, no contacts.
 MODEL_CONFIG_BEFORE_CONTACTS = {"coordinate_masks": False, "contacts": False}
+
+
+def model_file(path):
+    """The model's .npz: ``path`` itself if it is one, else in the weights folder ``path``."""
+    path = Path(path)
+    return path if path.suffix == ".npz" else path / MODEL_FILE
 
 
 def save(path, module, config, extra=None):

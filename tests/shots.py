@@ -1,5 +1,6 @@
 """The shots an animator would try first, set up on any mapped rig: idle from the rest pose, a hand
-reach, blocking keys, a slow hand wave. Shared by the quality benchmark and tests/test_quality.py.
+reach, blocking keys, a slow hand wave, and walks along paths drawn on the floor. Shared by the
+quality benchmark and the tests.
 
 Each shot function takes the rig and returns ({joint: curve points (P, 3) world}, key frame or
 None); it may key the rig (blocking)."""
@@ -122,4 +123,38 @@ def blocking(rig):
     return {}, KEY_FRAME
 
 
+def _ground_path(rig, length, bend_degrees):
+    """A path on the floor from under the hips along the rig's facing, ``length`` metres long,
+    turning ``bend_degrees`` in all at a steady rate (an arc; 0: a straight line)."""
+    joints = blender_rigs.world_joints(rig)
+    forward = facing(joints)
+    side = np.cross(UP, forward)
+    share = np.linspace(0.0, 1.0, 60)
+    if bend_degrees == 0:
+        offsets = share[:, None] * length * forward
+    else:
+        radius = length / math.radians(bend_degrees)
+        angle = share * math.radians(bend_degrees)
+        offsets = radius * (np.sin(angle)[:, None] * forward + (1.0 - np.cos(angle))[:, None] * side)
+    start = joints[J["Hip"]].copy()
+    start[2] = min(joints[J["RFoot"], 2], joints[J["LFoot"], 2]) - 0.08  # the floor, under the ankles
+    return start + offsets
+
+
+def walk(rig):
+    """A ground path: 4 m on the floor, gently curved (30 degrees), bound to the hips."""
+    return {"Hip": _ground_path(rig, 4.0, 30.0)}, None
+
+
+def quarter_turn(rig):
+    """A ground path: a quarter circle of radius 2.5 m."""
+    return {"Hip": _ground_path(rig, 2.5 * math.pi / 2, 90.0)}, None
+
+
+def long_walk(rig):
+    """A ground path: 10 m on the floor, gently curved (45 degrees)."""
+    return {"Hip": _ground_path(rig, 10.0, 45.0)}, None
+
+
 SHOTS = (("idle", 150, idle), ("reach", 90, reach), ("keys", 60, blocking), ("wave", 300, wave))
+WALKS = (("walk", 120, walk), ("quarter turn", 120, quarter_turn), ("long walk", 300, long_walk))

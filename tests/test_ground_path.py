@@ -1,5 +1,6 @@
 """A path drawn on the floor and bound to the rig's root or hips: the hips' horizontal path (issue 17)."""
 
+import bpy  # noqa: F401  (first: blender_rigs imports Blender's own modules)
 import numpy as np
 import pytest
 
@@ -42,3 +43,51 @@ def test_a_hip_curve_at_hip_height_gives_all_three_coordinates(scene, rigify):
     job = pipeline.prepare(rigify, 2, 0)
     np.testing.assert_array_equal(job.given.axes["Hip"], [True, True, True])
     assert job.given.mask[:, HIP].all()
+
+
+def test_feet_drawn_on_the_floor_without_timing_plant_and_swing_in_turn(scene):
+    """Two straight 3 m foot paths on the floor (plain curves: no drawing times) would glide at
+    constant speed; instead each foot stands still for most of each stride and swings between
+    plants, lifted at mid-swing, the left half a stride after the right."""
+    scene.frame_start, scene.frame_end = 1, 121
+    rig = blender_rigs.mannequin_rig(scene)
+    joints = blender_rigs.world_joints(rig)
+    forward = np.array([0.0, -1.0, 0.0])
+    for foot in ("RFoot", "LFoot"):
+        start = joints[JOINT_INDEX[foot]] * [1.0, 1.0, 0.0]  # drawn on the floor under the ankle
+        line = start + np.linspace(0.0, 3.0, 20)[:, None] * forward
+        api.bind_curve(rig, api.map_rig(rig)[foot], blender_rigs.curve(scene, f"{foot} steps", line))
+    job = pipeline.prepare(rig, 2, 0)
+    speed, lift = {}, {}
+    for foot in ("RFoot", "LFoot"):
+        target = job.given.targets[foot]
+        speed[foot] = np.linalg.norm(np.diff(target[:, :2], axis=0), axis=-1) * 30
+        lift[foot] = target[:, 2] - joints[JOINT_INDEX[foot], 2]
+        np.testing.assert_allclose(target[-1, :2], (joints[JOINT_INDEX[foot]] + 3.0 * forward)[:2], atol=1e-6)
+    planted = {foot: speed[foot] < 1e-6 for foot in speed}
+    print(f"planted share: right {planted['RFoot'].mean():.2f}, left {planted['LFoot'].mean():.2f}; "
+          f"top speed {max(s.max() for s in speed.values()):.2f} m/s, lift {max(l.max() for l in lift.values()):.3f} m")
+    assert all(0.5 < share.mean() < 0.75 for share in planted.values())  # stance most of each stride
+    assert not (~planted["RFoot"] & ~planted["LFoot"]).any()  # never both feet in the air: a walk
+    assert all(0.09 < l.max() < 0.11 and l.min() > -1e-9 for l in lift.values())
+    assert all(np.isclose(l[np.r_[planted[f], False]], 0.0).all() for f, l in lift.items())  # on the ground when planted
+
+
+def test_keys_on_the_root_are_waypoints_of_the_hips(scene, rigify):
+    """Rigify's root keyed at three frames (moved 2 m, then 4 m along the floor): the hips are held
+    where each key puts them on those frames, and free between (a sparse path)."""
+    hips = blender_rigs.world_joints(rigify)[HIP]
+    root = rigify.pose.bones["root"]
+    for frame, metres in ((1, 0.0), (61, 2.0), (121, 4.0)):
+        root.location = (0.0, 0.0, 0.0)
+        root.location[1] = metres  # the root bone's Y points along the floor, away from the rig's front
+        root.keyframe_insert("location", frame=frame)
+    scene.frame_set(1)
+    job = pipeline.prepare(rigify, 2, 0)
+    assert sorted(job.request.keys) == [61, 121]
+    for frame in (61, 121):
+        held = job.request.keys[frame]["Hip"]
+        moved = np.linalg.norm((held - hips)[:2])
+        print(f"frame {frame}: hips key {moved:.2f} m from the start")
+        assert abs(moved - 2.0 * (frame - 1) / 60) < 0.01 and abs(held[2] - hips[2]) < 0.01
+    assert job.given.mask[:, HIP].sum(axis=0)[0] == 2  # the model frames of 61 and 121 (30 fps: one each)

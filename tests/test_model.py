@@ -28,7 +28,7 @@ def test_shipped_weights_are_small_plain_arrays():
     assert weights.MODEL_WEIGHTS.stat().st_size < 30 * 2 ** 20
     with np.load(weights.MODEL_WEIGHTS, allow_pickle=False) as stored:
         meta = json.loads(str(stored["__meta__"]))
-    assert meta["validation_subjects"] == list(dataset.VALIDATION_SUBJECTS)
+    assert meta["data"]["validation"] == "subjects " + ", ".join(dataset.VALIDATION_SUBJECTS)
     assert ModelConfig(**meta["config"]) == ModelConfig()
     assert weights.load_model()[0].config == ModelConfig()
 
@@ -117,23 +117,23 @@ def test_second_stage_scores_the_root_apart_from_the_body():
 
 
 def test_training_runs_checkpoints_resumes_and_its_second_stage_depends_only_on_the_first(tmp_path):
-    out, checkpoint = tmp_path / "model.npz", tmp_path / "run.pt"
+    out, checkpoint = tmp_path / "weights", tmp_path / "run.pt"
     common = ["--out", str(out), "--checkpoint", str(checkpoint), "--batch", "8", "--completion-steps", "0"]
     assert train.main(["--steps", "2", "--fresh"] + common) == 0
-    assert out.exists() and checkpoint.exists()
+    assert {path.name for path in out.iterdir()} == {weights.MODEL_FILE, weights.LIMITS_FILE, weights.CARD_FILE}
     state = torch.load(checkpoint, weights_only=True)
     assert state["step"] == 2
     first_stage = tmp_path / "first_stage.npz"
-    shutil.copy(out, first_stage)  # the model at step 2: its one validation is the best
+    shutil.copy(out / weights.MODEL_FILE, first_stage)  # the model at step 2: its one validation is the best
     common[-1] = "2"
     assert train.main(["--steps", "2"] + common) == 0  # resumes into the second stage
     resumed = torch.load(checkpoint, weights_only=True)
     assert resumed["step"] == 4
     changed = {name for name, value in resumed["model"].items() if not torch.equal(value, state["model"][name])}
     assert changed and all(name.startswith("completion_") for name in changed)
-    again = tmp_path / "again.pt"
-    assert train.main(["--init", str(first_stage), "--steps", "2", "--completion-steps", "2", "--batch", "8",
-                       "--out", str(tmp_path / "again.npz"), "--checkpoint", str(again)]) == 0
+    again = tmp_path / "again.pt"  # the same second stage from the first stage's weights alone
+    assert train.main(["--init", str(first_stage), "--steps", "0", "--completion-steps", "2", "--batch", "8",
+                       "--out", str(tmp_path / "again"), "--checkpoint", str(again)]) == 0
     for name, value in torch.load(again, weights_only=True)["model"].items():
         torch.testing.assert_close(value, resumed["model"][name])
 
@@ -155,7 +155,9 @@ def test_evaluate_prints_and_writes_every_method_and_k(tmp_path, capsys, mocap_r
     assert result["methods"]["trajevae"]["k"]["0"]["APD"] > 0
     assert "nearest_neighbour" in capsys.readouterr().out
     from model_runtime import model_card
-    card = tmp_path / "MODEL_CARD.md"
-    assert model_card.main([str(report), "--out", str(card)]) == 0
+    folder = tmp_path / "weights"
+    shutil.copytree(weights.ASSETS, folder)
+    assert model_card.main([str(report), "--weights", str(folder)]) == 0
+    card = folder / weights.CARD_FILE
     pinned = result["methods"]["pinned_pose"]["k"]["4"]
     assert f"| pinned_pose | 4 | {pinned['APD']:.3f} | {pinned['ADE']:.3f} |" in card.read_text()

@@ -1,6 +1,7 @@
 """The diverse sampler with the shipped weights: more different variants, still plausible; its training."""
 
 import json
+import shutil
 
 import numpy as np
 import pytest
@@ -71,8 +72,12 @@ def test_with_curves_sampler_variants_keep_them_and_still_differ_more(windows):
 
 
 def test_sampler_training_runs_checkpoints_and_resumes(tmp_path):
-    out, checkpoint = tmp_path / "sampler.npz", tmp_path / "sampler.pt"
-    common = ["--out", str(out), "--checkpoint", str(checkpoint), "--batch", "2"]
+    folder, checkpoint = tmp_path / "weights", tmp_path / "sampler.pt"
+    folder.mkdir()
+    for name in (weights.MODEL_FILE, weights.LIMITS_FILE):
+        shutil.copy(weights.ASSETS / name, folder / name)
+    out = folder / weights.SAMPLER_FILE
+    common = ["--weights", str(folder), "--checkpoint", str(checkpoint), "--batch", "2"]
     assert train_sampler.main(["--steps", "2", "--fresh"] + common) == 0
     assert torch.load(checkpoint, weights_only=True)["step"] == 2 and out.exists()
     assert train_sampler.main(["--steps", "3"] + common) == 0

@@ -5,9 +5,9 @@ writing Actions. The model and all math live in ``model_runtime`` (no bpy),
 imported through ``runtime``.
 """
 
-from . import mannequin, operators, properties, ui
+from . import mannequin, operators, preferences, properties, ui
 
-_MODULES = (properties, operators, mannequin, ui)
+_MODULES = (preferences, properties, operators, mannequin, ui)
 
 
 def register():

@@ -8,17 +8,21 @@ Example (headless, see README)::
     rig = bpy.data.objects["Armature"]
     print(api.map_rig(rig))                      # {"Hip": "hips", "RHip": "thigh.R", ...}
     api.bind_curve(rig, "hand.L", bpy.data.objects["HandPath"])
+    api.walk_along(rig, bpy.data.objects["FloorPath"])  # a path on the floor: the rig walks along it
     variants = api.generate_variants(rig, n=5, seed=0)
     api.set_active_variant(rig, variants[2])
     api.keep_variant(rig, variants[2])           # or api.restore_original(rig)
+    api.use_weights("/studio/weights")           # a folder from model_runtime.train --out
 
 Joint names are the canonical ones of ``model_runtime.skeleton.JOINT_NAMES``.
 """
 
+import os
+
 import bpy
 import numpy as np
 
-from . import bindings, pipeline, rig_state, variants
+from . import bindings, inference, pipeline, preferences, rig_state, variants
 
 PATH_TYPES = {'CURVE', 'GREASEPENCIL'}
 
@@ -75,6 +79,15 @@ def bind_curve(armature, bone_name, curve_object, use_drawing_speed=True):
     bindings.bind(armature, bone_name, curve_object, bool(use_drawing_speed))
 
 
+def walk_along(armature, curve_object, use_drawing_speed=True):
+    """Make the rig walk along a path drawn on the floor: bind it to the hips' bone as a ground path
+    (the hips' horizontal path; the model chooses the height, the steps and the body)."""
+    hips = rig_state.mapping(_armature(armature, "walk_along", writes=True))["Hip"]
+    if hips is None:
+        raise ValueError(f"{armature.name!r} has no bone mapped to the hips; map one under TrajeVAE > Rig Mapping")
+    bind_curve(armature, hips, curve_object, use_drawing_speed)
+
+
 def unbind(armature, bone_name):
     """Remove the binding of ``bone_name`` (its present name, or the last one of a deleted bone)."""
     _armature(armature, "unbind", writes=True)
@@ -99,3 +112,16 @@ def keep_variant(armature, action):
 
 def restore_original(armature):
     variants.restore_original(armature)
+
+
+def use_weights(folder=None):
+    """Generate with the weights folder ``folder`` (as ``python -m model_runtime.train --out FOLDER``
+    writes it; None: the bundled weights) from now on, kept in the add-on's preferences where Blender
+    has them. Returns the folder in use; ValueError (one sentence) where it cannot be used."""
+    if folder is not None and not isinstance(folder, (str, os.PathLike)):
+        raise TypeError(f"use_weights needs a folder path, not {folder!r}")
+    used = inference.use_weights(folder)
+    settings = preferences.get(bpy.context)
+    if settings is not None:
+        settings.weights_folder = "" if inference.bundled() else str(used)
+    return str(used)

@@ -68,12 +68,16 @@ def unbind(armature, bone):
 
 def bone_joints(armature, bones):
     """{bone name: joint} of the bones a path can be bound to: those a joint is mapped to, and the
-    bones above the hips (a rig's root, Rigify's ``root``), whose path is the hips' (on the floor,
-    a ground path: the body walks along it)."""
+    rig's root, whose path is the hips' (on the floor, a ground path: the body walks along it): the
+    bones above the hips, and a parentless bone named root (Rigify's ``root`` is no parent of its
+    torso, which hangs from a parent-switch bone)."""
     joints = {bone: joint for joint, bone in bones.items() if bone}
     hips = armature.pose.bones.get(bones.get("Hip") or "")
     for above in (hips.parent_recursive if hips is not None else ()):
         joints.setdefault(above.name, "Hip")
+    for bone in armature.pose.bones:
+        if bone.parent is None and bone.name.lower() == "root":
+            joints.setdefault(bone.name, "Hip")
     return joints
 
 

@@ -212,6 +212,29 @@ class TRAJEVAE_OT_bind_curve(_ArmatureOperator, bpy.types.Operator):
         return {'FINISHED'}
 
 
+class TRAJEVAE_OT_walk_along_path(_ArmatureOperator, bpy.types.Operator):
+    """Make the rig walk along the selected curve or stroke drawn on the floor: its hips follow the
+    path across the floor, the model chooses their height, the steps and the body"""
+
+    bl_idname = "trajevae.walk_along_path"
+    bl_label = "Walk Along Selected Path"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    def execute(self, context):
+        armature = rig_state.active_armature(context)
+        curve = next((obj for obj in context.selected_objects if obj.type in {'CURVE', 'GREASEPENCIL'}), None)
+        if curve is None:
+            self.report({'ERROR'}, "draw a path on the floor (a curve or grease pencil stroke), select it, then the "
+                                   "armature")
+            return {'CANCELLED'}
+        try:
+            api.walk_along(armature, curve)
+        except ValueError as error:
+            self.report({'ERROR'}, str(error))
+            return {'CANCELLED'}
+        return {'FINISHED'}
+
+
 class TRAJEVAE_OT_unbind(_ArmatureOperator, bpy.types.Operator):
     """Remove the selected binding"""
 
@@ -228,5 +251,5 @@ class TRAJEVAE_OT_unbind(_ArmatureOperator, bpy.types.Operator):
 
 
 CLASSES = (TRAJEVAE_OT_generate, TRAJEVAE_OT_step_variant, TRAJEVAE_OT_keep_variant,
-           TRAJEVAE_OT_discard_variants, TRAJEVAE_OT_bind_curve, TRAJEVAE_OT_unbind)
+           TRAJEVAE_OT_discard_variants, TRAJEVAE_OT_bind_curve, TRAJEVAE_OT_walk_along_path, TRAJEVAE_OT_unbind)
 register, unregister = bpy.utils.register_classes_factory(CLASSES)

@@ -57,6 +57,7 @@ class Job:
 
     request: shot.Request
     given: shot.ModelInput  # the request as the model sees it, its reach checked
+    networks: tuple  # (model, sampler or None) of the weights in use when it was prepared
     bones: dict
     switches: dict
     switches_before: dict
@@ -168,11 +169,13 @@ def prepare(armature, count=5, seed=0, diversity=1.0, scene=None):
     if not metres_per_unit > 0.0 or not np.isfinite(metres_per_unit):
         raise InputError(f"the scene's unit scale {metres_per_unit!r} must be a positive number")
     paths, warnings = bindings.joint_paths(armature, bones)
+    # The rig's root above the hips (Rigify's root): its keys are waypoints of the hips.
+    roots = {bone for bone in bindings.bone_joints(armature, bones) if bone not in bones.values()}
 
     def read_scene():
         current = scene.frame_current
         action = armature.animation_data.action if armature.animation_data else None
-        key_frames = _key_frames(action, set(bones.values()), frames)
+        key_frames = _key_frames(action, set(bones.values()) | roots, frames)
         moves = _moves_in_world(armature, action)
         poses, world, floor = {}, [], []
         try:
@@ -197,7 +200,7 @@ def prepare(armature, count=5, seed=0, diversity=1.0, scene=None):
                                  "(zero scale) on some frame; fix it before generating")
     rig, joints = poses[int(frames[0])]
     keys = {frame: {joint: poses[frame][1][J[joint]]
-                    for bone in keyed for joint in _joints_of_keyed_bone(rig, bone)}
+                    for bone in keyed for joint in (["Hip"] if bone in roots else _joints_of_keyed_bone(rig, bone))}
             for frame, keyed in key_frames.items()}
     request = shot.Request(
         count, seed, diversity, rig, {bone: armature.pose.bones[bone].rotation_mode for bone in rig.bones.values()},
@@ -207,12 +210,11 @@ def prepare(armature, count=5, seed=0, diversity=1.0, scene=None):
         points, times = curves.path(obj, int(frames[0]))
         request.curves[joint] = (points, times if use_drawing_speed else None)
         request.curve_names[joint] = obj.name
-    inference.model()  # loaded here, so missing or broken weights are said before any work
-    inference.sampler()
+    networks = inference.networks()  # loaded here, so missing or broken weights are said before any work
     note = inference.missing_sampler_note()
     if note:
         warnings.append(note)
-    return Job(request, shot.checked_input(request), bones, switches, switches_before, shown_by, warnings,
+    return Job(request, shot.checked_input(request), networks, bones, switches, switches_before, shown_by, warnings,
                seconds={"read": time.perf_counter() - clock})
 
 
@@ -228,7 +230,7 @@ def infer(job, on_progress=None):
         if job.cancel_event.is_set():
             raise Cancelled()
 
-    job.result = shot.run(job.request, inference.model(), inference.sampler(), advance, job.given)
+    job.result = shot.run(job.request, *job.networks, advance, job.given)
     job.seconds["shot"] = time.perf_counter() - clock
 
 
@@ -431,7 +433,7 @@ def generate_variants(armature, count=5, seed=0, diversity=1.0, scene=None):
     Headless runs print progress for frame ranges longer than one model window."""
     job = prepare(armature, count, seed, diversity, scene)
     seconds = (len(job.request.frames) - 1) / job.request.fps
-    long_job = bpy.app.background and seconds * shot.generation.NATIVE_FPS > inference.model().frames
+    long_job = bpy.app.background and seconds * shot.generation.NATIVE_FPS > job.networks[0].frames
     infer(job, (lambda fraction: print(f"TrajeVAE {armature.name}: {100 * fraction:.0f}%", flush=True))
           if long_job else None)
     return finish(job, armature)

@@ -1,5 +1,6 @@
 """Reading an artist's rig: its mapping (auto-detected, merged with overrides) and its pose at a frame."""
 
+import functools
 import json
 
 import numpy as np
@@ -64,9 +65,16 @@ def restore_pose(armature, snapshot):
 
 
 def detected(armature):
-    """(profile name, {joint: bone or None}) from the armature's bone names alone."""
-    return rig_mapping.detect({bone.name: bone.parent.name if bone.parent else None
-                               for bone in armature.data.bones})
+    """(profile name, {joint: bone or None}) from the armature's bone names alone; remembered per
+    bone hierarchy, as the panel asks once per binding row on every redraw."""
+    profile, bones = _detect(tuple((bone.name, bone.parent.name if bone.parent else None)
+                                   for bone in armature.data.bones))
+    return profile, dict(bones)
+
+
+@functools.lru_cache(maxsize=64)
+def _detect(hierarchy):
+    return rig_mapping.detect(dict(hierarchy))
 
 
 def mapping(armature):

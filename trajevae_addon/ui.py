@@ -2,7 +2,7 @@
 
 import bpy
 
-from . import bindings, inference, rig_mapping, rig_state
+from . import bindings, inference, preferences, rig_mapping, rig_state
 from .runtime import skeleton
 
 
@@ -54,7 +54,11 @@ class TRAJEVAE_PT_main(_SidebarPanel, bpy.types.Panel):
             box.label(text="Fix them under Rig Mapping below")
         if not inference.torch_installed():
             box.label(text="Runs on numpy: torch is not needed here", icon='CHECKMARK')
+        preferences.draw_weights(box)
 
+        walk = layout.row()
+        walk.scale_y = 1.2
+        walk.operator("trajevae.walk_along_path", icon='CURVE_PATH')
         layout.label(text="Paths (bone follows curve or stroke)")
         row = layout.row()
         row.template_list("TRAJEVAE_UL_bindings", "", settings, "bindings", settings, "active_binding", rows=2)
@@ -71,6 +75,7 @@ class TRAJEVAE_PT_main(_SidebarPanel, bpy.types.Panel):
         if not len(settings.bindings) and not any(bindings.path_constraints(armature, b) for b in bones.values()
                                                   if b):
             layout.label(text="No paths: diverse motions from the current pose", icon='INFO')
+            layout.label(text="Or draw a path on the floor, select it and Walk Along Selected Path")
 
         column = layout.column(align=True)
         column.prop(settings, "variant_count")

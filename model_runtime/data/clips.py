@@ -55,11 +55,12 @@ class Clip:
         return (self.frames - 1) / self.fps
 
 
-def load_clip(path):
-    """Read, map, resample and normalise one BVH file (raises BVHError or MappingError)."""
+def load_clip(path, custom=()):
+    """Read, map, resample and normalise one BVH file (raises BVHError or MappingError); ``custom``
+    profiles (``profiles.read_mapping``) are tried before the built-in ones."""
     motion = bvh.read(path)
     hierarchy = motion.hierarchy
-    profile = profiles.detect(hierarchy.names, str(path))
+    profile = profiles.detect(hierarchy.names, str(path), custom)
     motion = bvh.Motion(hierarchy, _drop_added_frames(hierarchy, motion.values), motion.frame_time)
     values_used = motion.values.shape[0]
 

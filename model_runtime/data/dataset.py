@@ -2,8 +2,10 @@
 
 import csv
 import dataclasses
+import functools
 import hashlib
 import os
+import sys
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
@@ -60,21 +62,23 @@ def _from_array(value):
     return value.item() if value.ndim == 0 else value
 
 
-def _cache_path(path):
+def _cache_path(path, custom=()):
+    """The cache file of one BVH file as mapped with ``custom`` profiles (a mapping file changes
+    the clip, so it is part of the key)."""
     stat = path.stat()
-    key = f"{path}|{stat.st_size}|{stat.st_mtime_ns}".encode()
-    return cache_dir() / (hashlib.sha1(key).hexdigest() + ".npz")
+    key = f"{path}|{stat.st_size}|{stat.st_mtime_ns}" + "".join(f"|{profile}" for profile in custom)
+    return cache_dir() / (hashlib.sha1(key.encode()).hexdigest() + ".npz")
 
 
-def _load_cached(path):
+def _load_cached(path, custom=()):
     """One clip from the cache, or loaded and cached; an error string if it cannot be read or mapped."""
     path = Path(path)
-    cached = _cache_path(path)
+    cached = _cache_path(path, custom)
     if cached.exists():
         with np.load(cached) as stored:
             return clips.Clip(file=str(path), **{name: _from_array(stored[name]) for name in _STORED_FIELDS})
     try:
-        clip = clips.load_clip(path)
+        clip = clips.load_clip(path, custom)
     except (bvh.BVHError, profiles.MappingError, OSError) as error:
         return str(error)
     cached.parent.mkdir(parents=True, exist_ok=True)
@@ -84,22 +88,24 @@ def _load_cached(path):
     return clip
 
 
-def load_clips(paths, workers=None, progress=None):
+def load_clips(paths, workers=None, progress=None, custom=()):
     """Load every BVH under ``paths``. Returns (clips, errors): errors are one line per bad file.
 
     Uncached files are read in ``workers`` processes (default: all cores).
-    ``progress(done, total)`` is called as files finish.
+    ``progress(done, total)`` is called as files finish. ``custom`` profiles (from mapping files)
+    are tried before the built-in ones.
     """
     files = find_bvh(paths)
-    uncached = [f for f in files if not _cache_path(f).exists()]
+    uncached = [f for f in files if not _cache_path(f, custom).exists()]
     workers = workers or os.cpu_count() or 1
+    load = functools.partial(_load_cached, custom=tuple(custom))
     if len(uncached) > 1 and workers > 1:
         with ProcessPoolExecutor(workers) as pool:
-            for done, _ in enumerate(pool.map(_load_cached, uncached, chunksize=1), 1):
+            for done, _ in enumerate(pool.map(load, uncached, chunksize=1), 1):
                 if progress:
                     progress(done, len(files))
     loaded, errors = [], []
-    for result in map(_load_cached, files):
+    for result in map(load, files):
         (errors if isinstance(result, str) else loaded).append(result)
     if progress:
         progress(len(files), len(files))
@@ -113,6 +119,70 @@ def split_by_subject(clip_list, manifest, validation_subjects=VALIDATION_SUBJECT
         row = manifest.get(Path(clip.file).resolve())
         (validation if row and row["subject"] in validation_subjects else train).append(clip)
     return train, validation
+
+
+@dataclasses.dataclass
+class Split:
+    """Training and validation clips, with how they were chosen (for the weights' meta and card)."""
+
+    train: list
+    validation: list
+    errors: list
+    validation_rule: str
+    paths: list
+
+    def describe(self):
+        minutes = lambda part: round(sum(clip.seconds for clip in part) / 60, 1)
+        return {"paths": [str(path) for path in self.paths], "train_clips": len(self.train),
+                "train_minutes": minutes(self.train), "validation_clips": len(self.validation),
+                "validation_minutes": minutes(self.validation), "validation": self.validation_rule}
+
+
+HELD_OUT_EVERY = 10  # without validation subjects or files, every tenth file (sorted) is held out
+
+
+def training_split(data=DATA_ROOTS, validation=None, custom=()):
+    """A ``Split`` of the BVH files under ``data``: the files under ``validation`` if given, else
+    the manifests' ``VALIDATION_SUBJECTS``, else every ``HELD_OUT_EVERY``-th file."""
+    loaded, errors = load_clips(list(data) + list(validation or []), custom=custom)
+    paths = list(data) + list(validation or [])
+    if validation:
+        held = set(find_bvh(validation))
+        train = [clip for clip in loaded if Path(clip.file).resolve() not in held]
+        return Split(train, [clip for clip in loaded if Path(clip.file).resolve() in held], errors,
+                     "files under " + ", ".join(map(str, validation)), paths)
+    train, held = split_by_subject(loaded, read_manifest(data))
+    if held:
+        return Split(train, held, errors, "subjects " + ", ".join(VALIDATION_SUBJECTS), paths)
+    every = HELD_OUT_EVERY
+    return Split([c for i, c in enumerate(loaded) if i % every != every - 1], loaded[every - 1::every], errors,
+                 f"every {every}th file", paths)
+
+
+def add_data_arguments(parser):
+    """The training and evaluation commands' --data, --validation and --mapping options."""
+    parser.add_argument("--data", nargs="+", default=[str(root) for root in DATA_ROOTS],
+                        help="BVH files or folders (default: ../shared/mocap and ../shared/mocap-extra)")
+    parser.add_argument("--validation", nargs="+", help="BVH files or folders held out for validation "
+                        f"(default: the subjects {', '.join(VALIDATION_SUBJECTS)}, else every {HELD_OUT_EVERY}th file)")
+    parser.add_argument("--mapping", nargs="+", default=[],
+                        help="JSON files mapping the 14 joints to a library's bone names (docs/mapping-example.json)")
+
+
+def split_from_arguments(parser, args):
+    """The ``Split`` that ``add_data_arguments``' options ask for; a bad mapping file or no usable
+    clip is a parser error (one sentence)."""
+    try:
+        custom = tuple(profiles.read_mapping(path) for path in args.mapping)
+    except ValueError as error:
+        parser.error(str(error))
+    split = training_split(args.data, args.validation, custom)
+    for error in split.errors:
+        print(f"skipped: {error}", file=sys.stderr)
+    if not split.train or not split.validation:
+        parser.error(f"{len(split.train)} training and {len(split.validation)} validation clips could be read "
+                     f"from {' '.join(map(str, split.paths))}: both are needed")
+    return split
 
 
 def windows(clip_list, future=WINDOW_FUTURE, stride=5):

@@ -17,9 +17,14 @@ skull base (the head of the head bone).
 
 A profile is chosen from a file's bone names: every mapped bone and every
 signature bone must exist. The same tables map artists' rigs in Blender.
+A library with its own naming adds a mapping file (``read_mapping``): JSON
+from each of the 14 mapped joints to its bone name (or a list of accepted
+names), tried before the built-in tables.
 """
 
+import json
 from dataclasses import dataclass
+from pathlib import Path
 
 from ..skeleton import JOINT_NAMES
 
@@ -87,9 +92,36 @@ PROFILES = (
 )
 
 
-def detect(bone_names, source="skeleton"):
-    """The profile that maps every canonical joint of these bones, else MappingError."""
-    ranked = sorted(PROFILES, key=lambda profile: len(profile.missing(bone_names)))
+def read_mapping(path):
+    """The profile of a mapping file: {"RHip": "thigh_R", ..., "LWrist": ["hand_L", "wrist_L"]} for
+    every joint of ``MAPPED_JOINTS``; ValueError says what is wrong with it."""
+    path = Path(path)
+    try:
+        table = json.loads(path.read_text())
+    except (OSError, ValueError) as error:
+        raise ValueError(f"the mapping file {path} cannot be read as JSON ({error})") from None
+    if not isinstance(table, dict):
+        raise ValueError(f"the mapping file {path} must be one JSON object from joint names to bone names")
+    unknown = sorted(set(table) - set(MAPPED_JOINTS))
+    missing = [joint for joint in MAPPED_JOINTS if joint not in table]
+    if unknown or missing:
+        raise ValueError(f"the mapping file {path} " + "; ".join(
+            part for part in (f"names unknown joints {', '.join(unknown)}" if unknown else "",
+                              f"lacks {', '.join(missing)}" if missing else "") if part)
+            + f" (it maps exactly these joints: {', '.join(MAPPED_JOINTS)})")
+    bones = {}
+    for joint in MAPPED_JOINTS:
+        names = table[joint] if isinstance(table[joint], list) else [table[joint]]
+        if not names or not all(isinstance(name, str) and name for name in names):
+            raise ValueError(f"the mapping file {path} gives {joint} no bone name")
+        bones[joint] = tuple(names)
+    return RigProfile(f"mapping {path.name}", bones)
+
+
+def detect(bone_names, source="skeleton", custom=()):
+    """The profile that maps every canonical joint of these bones, else MappingError. ``custom``
+    profiles (from mapping files) are tried first."""
+    ranked = sorted(tuple(custom) + PROFILES, key=lambda profile: len(profile.missing(bone_names)))
     best = ranked[0]
     gaps = best.missing(bone_names)
     if gaps:
