@@ -59,17 +59,8 @@ class ModelConfig:
     decoder_layers: int = 2
     completion_layers: int = 2
     dropout: float = 0.1
-    coordinate_masks: bool = True  # the mask as an input per coordinate (else per joint)
-    contacts: bool = True  # foot contact logits beside the poses
-
-    @property
-    def mask_size(self):
-        """Mask values per frame that the network sees."""
-        return NUM_JOINTS * (3 if self.coordinate_masks else 1)
-
-    @property
-    def contact_size(self):
-        return 2 if self.contacts else 0
+    mask_size = NUM_JOINTS * 3  # mask values per frame that the network sees: one per coordinate
+    contact_size = 2  # foot contact logits per frame beside the poses: right, left
 
     def to_dict(self):
         return asdict(self)
@@ -142,7 +133,7 @@ class TrajeVAE(nn.Module):
 
     def _mask_input(self, mask):
         """The mask (B, T, J, 3) as the network sees it: (B, T, mask_size)."""
-        return mask.flatten(2) if self.config.coordinate_masks else mask[..., 0]
+        return mask.flatten(2)
 
     def _frame_codes(self, values, mask):
         """Per-frame codes (B, T, W/2) of masked positions (B, T, J, 3) and their mask (B, T, J, 3)."""

@@ -120,8 +120,8 @@ bone lengths ({train['bone_weight']}), joint-angle limits fitted on the training
 squared speed of planted feet ({train['skating_weight']}; the prior sample's own predicted contacts)
 and ankles below the window's floor ({train['floor_weight']}).
 Then the second stage: the completion stage alone ({config['completion_layers']} transformer layers) for
-{train['completion_steps']} steps (lr {train['completion_learning_rate']}, warm-up then one cosine decay, seed
-{train['seed']} + 1), on the frozen first stage's decodes of posterior samples and, for
+{train['completion_steps']} steps (lr {train['completion_learning_rate']}, warm-up then one cosine decay), from the
+first stage's best validated weights, on their frozen decodes of posterior samples and, for
 {train['completion_mean_share']:.0%} of each batch, of the prior mean (squared error of the root and of the
 body relative to it, plus the realism terms). Best checkpoint at step {meta['step']} after
 {meta['training_minutes']:.0f} minutes in {meta['processes']} process(es) ({meta['first_stage_minutes']:.0f} for the first stage);

@@ -138,7 +138,6 @@ class NumpyTrajeVAE:
         arrays["decoder_input.0.weight_latent"] = np.ascontiguousarray(first[:, :latent])
         arrays["decoder_input.0.weight_condition"] = np.ascontiguousarray(first[:, latent:])
         self.weights = _Weights(arrays)
-        self.coordinate_masks = self.config.get("coordinate_masks", False)  # older files: a per-joint mask
         self.frames, width = self.config["frames"], self.config["width"]
         self.dct = dct_matrix(self.frames)[: self.config["dct_keep"]].astype(np.float32)
         self.time_code = _sinusoids(self.frames, width)
@@ -146,7 +145,7 @@ class NumpyTrajeVAE:
 
     def _mask_input(self, mask):
         """As ``model.TrajeVAE._mask_input``: (B, T, J, 3) -> (B, T, mask_size)."""
-        return mask.reshape(*mask.shape[:2], -1) if self.coordinate_masks else mask[..., 0]
+        return mask.reshape(*mask.shape[:2], -1)
 
     def prior(self, initial, trajectories, mask):
         """(mean, log_var) (B, K, latent) and the encoded condition, for initial (B, 17, 3),

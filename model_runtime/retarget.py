@@ -221,16 +221,21 @@ def _lean_to_hands(rig, targets, chest, pivot, pinned):
     return chest
 
 
+MAX_PELVIS_DROP = 0.15  # the most the feet's reach may lower the pelvis, in leg lengths
+
+
 def _reach_feet(rig, targets, pelvis, free, rounds=4):
     """The pelvis delta (F, 4, 4) moved toward any foot target the rig's leg cannot reach.
 
     Generated hips can sit a little too far from the feet for the rig's legs
     (a pinned foot, other proportions); moving the body keeps the feet planted
     instead of leaving them short of the floor. Only on frames where ``free``
-    (F,) is 1.
+    (F,) is 1, and never lower than ``MAX_PELVIS_DROP`` of a leg's length: feet
+    planted far apart would pull the pelvis down to the floor between them.
     """
     start = rig.joints
     pelvis = pelvis.copy()
+    lowest = pelvis[:, 2, 3] - MAX_PELVIS_DROP * limb_length(start, LIMBS[0])
     for _ in range(rounds):
         shift = np.zeros((len(targets), 3))
         for upper, lower, end in LIMBS[:2]:
@@ -239,6 +244,7 @@ def _reach_feet(rig, targets, pelvis, free, rounds=4):
             distance = np.linalg.norm(to_end, axis=-1, keepdims=True)
             shift += np.maximum(distance - reach, 0.0) * to_end / np.maximum(distance, 1e-9)
         pelvis[:, :3, 3] += shift * free[:, None]
+        pelvis[:, 2, 3] = np.maximum(pelvis[:, 2, 3], lowest)
     return pelvis
 
 

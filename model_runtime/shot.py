@@ -45,7 +45,8 @@ COMPARED_FRAMES = 300
 GROUND_PATH_HEIGHT = 0.5
 GROUND_EASE_S = 0.5
 # A foot curve drawn without times whose mean height over the floor is under this, at least
-# ``generation.Stepping.SHORTEST_PATH_M`` long, is a path of footsteps: the foot plants and swings along it (``foot_stepping``).
+# ``generation.Stepping.SHORTEST_PATH_M`` long, is a path of footsteps: the foot plants and swings
+# along it (``foot_stepping``).
 FOOT_PATH_HEIGHT_M = 0.15
 # Share of ``run``'s progress spent in the networks; the retarget takes the rest.
 INFERENCE_SHARE = 0.75

@@ -11,11 +11,11 @@ feet are those it predicts itself). A share of windows starts from a rest
 pose (``augment.rest_start``), as the add-on's rigs do. The second trains the
 completion stage alone (``TrajeVAE.complete``) on the frozen first stage's
 decodes (posterior reconstructions, and for a share of each batch the prior
-mean's decode). Each step's random draws come from the seed, the stage and
-the step (``distributed.Processes.rng``), so a run resumes exactly from its
-checkpoint, with any number of processes, and a second stage started from a
-first stage's saved weights (``--init W --steps 0``) is the one a whole run
-makes. Random turns about Z and mirroring; model selection on the validation
+mean's decode), from the first stage's best validated weights. Each step's
+random draws come from the seed, the stage and the step
+(``distributed.Processes.rng``), so a run resumes exactly from its checkpoint,
+with any number of processes, and a second stage started from a first stage's
+saved weights (``--init W --steps 0``) is the one a whole run makes. Random turns about Z and mirroring; model selection on the validation
 clips only (best-of-10 ADE of prior samples over the evaluation masks
 k = 0..4, the quantity the evaluation reports; the prior mean's error rewards
 standing still). The first stage's learning rate follows cosine cycles with
@@ -209,6 +209,16 @@ def train_stage(model, stage):
         parameter.requires_grad_(name.startswith("completion_") == (stage == 2))
 
 
+def from_best_first_stage(model, best_file, run, processes):
+    """Start the second stage from the first stage's best validated weights (``best_file``, this
+    run's), not its last: selection then picks among the second stage's own validations (a first
+    stage's best beside an untrained completion stage is no model to ship)."""
+    state = processes.share(weights.load_state(best_file)[0] if processes.main else None)
+    model.load_state_dict(state)
+    run.best = float("inf")
+    processes.say(f"second stage from the first stage's best weights ({best_file})")
+
+
 def stage_learning_rate(step, config):
     """The learning rate of either stage at an overall step."""
     if step < config.steps:
@@ -315,6 +325,8 @@ def _train(parser, args, processes):
     while run.step < total_steps:
         if stage != (1 if run.step < config.steps else 2):  # start or resume a stage: its trainable set, wrapped
             stage = 1 if run.step < config.steps else 2
+            if stage == 2 and run.step == config.steps and run.best < float("inf"):
+                from_best_first_stage(model, out / weights.MODEL_FILE, run, processes)
             train_stage(model, stage)
             trained = processes.parallel(model if stage == 1 else CompletionStage(model))
             if stage == 2 and first_stage_minutes is None:

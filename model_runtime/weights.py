@@ -15,8 +15,6 @@ ASSETS = Path(__file__).resolve().parents[1] / "assets"  # the bundled weights f
 MODEL_WEIGHTS = ASSETS / MODEL_FILE
 SAMPLER_WEIGHTS = ASSETS / SAMPLER_FILE
 RESTORE = "restore it from the repository (git) or train it again (make train, make train-sampler)"
-# Configuration of model files written before these fields existed: a per-joint mask, no contacts.
-MODEL_CONFIG_BEFORE_CONTACTS = {"coordinate_masks": False, "contacts": False}
 
 
 def model_file(path):
@@ -44,11 +42,9 @@ def load_state(path):
     return {name: torch.from_numpy(array) for name, array in arrays.items()}, meta
 
 
-def load(path, module_class, config_class, earlier_defaults=None):
-    """(module in eval mode, meta dict) from a file written by ``save``; ``earlier_defaults`` fill
-    config fields that older files lack."""
+def load(path, module_class, config_class):
+    """(module in eval mode, meta dict) from a file written by ``save``."""
     state, meta = load_state(path)
-    meta["config"] = {**(earlier_defaults or {}), **meta["config"]}
     module = module_class(config_class(**meta["config"]))
     module.load_state_dict(state)
     return module.eval(), meta
@@ -56,7 +52,7 @@ def load(path, module_class, config_class, earlier_defaults=None):
 
 def load_model(path=MODEL_WEIGHTS):
     from .model import ModelConfig, TrajeVAE
-    return load(path, TrajeVAE, ModelConfig, MODEL_CONFIG_BEFORE_CONTACTS)
+    return load(path, TrajeVAE, ModelConfig)
 
 
 def load_sampler(path=SAMPLER_WEIGHTS):

@@ -72,7 +72,7 @@ def test_with_curves_the_variants_follow_them_closer_and_stretch_less_than_plain
     under the curves stray less from them, and bones stretch less, than in plain prior draws."""
     model = NumpyTrajeVAE(weights.MODEL_WEIGHTS)
     initial, trajectories, mask = _condition(all_clips)
-    variants = model.sample(initial, trajectories, mask, 10, np.random.default_rng(0), keep_given=False)
+    variants, _ = model.sample(initial, trajectories, mask, 10, np.random.default_rng(0), keep_given=False)
     assert variants.shape == (3, 10, 60, 17, 3)
     mean, log_var, encoded = model.prior(initial, trajectories, mask)
     noise = np.random.default_rng(1).standard_normal((3, 10) + mean.shape[1:]).astype(np.float32)
