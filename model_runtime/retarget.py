@@ -122,14 +122,16 @@ def _bend_weight(upper, lower):
     return np.clip((bend - 5.0) / 20.0, 0.0, 1.0)
 
 
-def joint_deltas(rig, targets, pinned=None, foot_turns=None):
+def joint_deltas(rig, targets, pinned=None, foot_turns=None, hips_on_path=False):
     """World deltas joint -> (F, 4, 4) for every mapped joint, from targets (F, 17, 3).
 
     ``pinned`` (F, 17), optional: joints the artist fixed on each frame; a
     pinned pelvis is never moved to let the feet reach, and the chest leans
     toward pinned hands beyond the arms' reach. ``foot_turns`` (F, 2),
     optional: each foot's turn about Z since the start (right, left; a planted
-    foot keeps its own), else the pelvis's.
+    foot keeps its own), else the pelvis's. ``hips_on_path``: the hips'
+    horizontal position is given (a ground path), so the feet's reach may
+    lower the pelvis but not move it off the path.
     """
     start, frames = rig.joints, len(targets)
     deltas = {}
@@ -148,7 +150,8 @@ def joint_deltas(rig, targets, pinned=None, foot_turns=None):
     pelvis = frame(hips, up(targets)) @ frame(  # the hips exactly, then the lean
         across(start, "LHip", "RHip"), up(start)).T
     free = np.ones(len(targets)) if pinned is None else 1.0 - pinned[:, J["Hip"]]
-    deltas["Hip"] = _reach_feet(rig, targets, _rigid(pelvis, start[J["Hip"]], targets[:, J["Hip"]]), free)
+    deltas["Hip"] = _reach_feet(rig, targets, _rigid(pelvis, start[J["Hip"]], targets[:, J["Hip"]]), free,
+                                hips_on_path)
     if "Spine" in rig.bones:
         chest = frame(up(targets), shoulders) @ frame(
             up(start), across(start, "LShoulder", "RShoulder")).T
@@ -224,7 +227,7 @@ def _lean_to_hands(rig, targets, chest, pivot, pinned):
 MAX_PELVIS_DROP = 0.15  # the most the feet's reach may lower the pelvis, in leg lengths
 
 
-def _reach_feet(rig, targets, pelvis, free, rounds=4):
+def _reach_feet(rig, targets, pelvis, free, hips_on_path=False, rounds=4):
     """The pelvis delta (F, 4, 4) moved toward any foot target the rig's leg cannot reach.
 
     Generated hips can sit a little too far from the feet for the rig's legs
@@ -232,6 +235,7 @@ def _reach_feet(rig, targets, pelvis, free, rounds=4):
     instead of leaving them short of the floor. Only on frames where ``free``
     (F,) is 1, and never lower than ``MAX_PELVIS_DROP`` of a leg's length: feet
     planted far apart would pull the pelvis down to the floor between them.
+    With ``hips_on_path`` it moves up or down only.
     """
     start = rig.joints
     pelvis = pelvis.copy()
@@ -243,6 +247,8 @@ def _reach_feet(rig, targets, pelvis, free, rounds=4):
             to_end = targets[:, J[end]] - _apply(pelvis, start[J[upper]])
             distance = np.linalg.norm(to_end, axis=-1, keepdims=True)
             shift += np.maximum(distance - reach, 0.0) * to_end / np.maximum(distance, 1e-9)
+        if hips_on_path:
+            shift[:, :2] = 0.0
         pelvis[:, :3, 3] += shift * free[:, None]
         pelvis[:, 2, 3] = np.maximum(pelvis[:, 2, 3], lowest)
     return pelvis

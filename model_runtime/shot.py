@@ -277,7 +277,7 @@ def run(request, model, sampler=None, progress=None, given=None):
     channels, shortfall = [], []
     for index in range(request.count):
         deltas = retarget.joint_deltas(request.rig, to_armature(world_to_armature, world[index]), pinned,
-                                       turns[index])
+                                       turns[index], hips_on_path="Hip" in given.axes and not given.axes["Hip"][2])
         keys = retarget.key_channels(retarget.bone_bases(request.rig, deltas), request.rotation_modes,
                                      request.root_bone)
         if not all(np.isfinite(values).all() for _, _, values in keys):
