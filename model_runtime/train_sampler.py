@@ -48,9 +48,9 @@ class SamplerTrainConfig:
     duplicate_weight: float = 40.0
     accuracy_weight: float = 100.0
     kl_weight: float = 1.0
-    angle_weight: float = 100.0
-    bone_weight: float = 3000.0
-    skating_weight: float = 10.0
+    angle_weight: float = 300.0
+    bone_weight: float = 6000.0
+    skating_weight: float = 100.0
     empty_mask_share: float = 0.5
     seed: int = 0
     validate_every: int = 250
