@@ -71,11 +71,6 @@ class Processes:
         if any(not torch.equal(gathered[0].cpu(), other.cpu()) for other in gathered[1:]):
             raise RuntimeError(f"the training processes' weights differ after step {step}")
 
-    def wait(self):
-        """All processes reach this point (rank 0 has written what they will read)."""
-        if self.world > 1:
-            dist.barrier()
-
     def close(self):
         if self.world > 1:
             dist.destroy_process_group()

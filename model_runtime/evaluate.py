@@ -34,7 +34,7 @@ import numpy as np
 import torch
 
 from . import baselines, masks, metrics, realism, weights
-from .data import clips, dataset, profiles
+from .data import clips, dataset
 from .sampler import prior_motions, sample_motions
 
 METHODS = ("trajevae", "trajevae_mean", "sampler", "pinned_pose", "nearest_neighbour")
@@ -149,11 +149,7 @@ def main(argv=None):
     train_clips, validation_clips = dataset.split_by_subject(dataset.load_clips(dataset.DATA_ROOTS)[0],
                                                              dataset.read_manifest())
     if args.data:
-        try:
-            custom = tuple(profiles.read_mapping(path) for path in args.mapping)
-        except ValueError as error:
-            parser.error(str(error))
-        eval_clips, errors = dataset.load_clips(args.data, custom=custom)
+        eval_clips, errors = dataset.load_clips(args.data, custom=dataset.mapping_profiles(parser, args.mapping))
         for error in errors:
             print(f"skipped: {error}", file=sys.stderr)
     else:

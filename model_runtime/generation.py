@@ -184,6 +184,12 @@ class Stepping:
         return self.FOOT_LIFT_M * np.sin(np.pi * swing)
 
 
+def time_shares(frames, span):
+    """Share of the shot's time (1 + frames,) in [0, 1] on each frame: frame m at min(m / span, 1),
+    ``span`` (model frames, possibly fractional) being where the scene's last frame falls."""
+    return np.clip(np.arange(frames + 1) / max(span, 1e-9), 0.0, 1.0)
+
+
 def curve_samples(points, frames, span, times=None, timing=None):
     """Positions (1 + frames, 3) along a polyline (P, 3), uniform in arc length, or in drawing
     time when the points' ``times`` (P,) are given.
@@ -198,6 +204,6 @@ def curve_samples(points, frames, span, times=None, timing=None):
         lengths = np.asarray(times, dtype=np.float64) - times[0]
     else:
         lengths = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
-    progress = np.clip(np.arange(frames + 1) / max(span, 1e-9), 0.0, 1.0)
+    progress = time_shares(frames, span)
     wanted = (progress if timing is None else timing(progress)) * lengths[-1]
     return np.stack([np.interp(wanted, lengths, points[:, axis]) for axis in range(3)], axis=-1)

@@ -85,6 +85,11 @@ class Request:
     curve_names: dict = field(default_factory=dict)
     keys: dict = field(default_factory=dict)
 
+    @property
+    def seconds(self):
+        """The shot's length: from the first frame to the last."""
+        return (len(self.frames) - 1) / self.fps
+
 
 @dataclass
 class ModelInput:
@@ -168,15 +173,14 @@ def path_samples(request, joint, count, span):
     to rest over GROUND_EASE_S at either end, and a foot path on the floor steps
     (``foot_stepping``); otherwise the curve is followed at its drawing speed, or uniformly."""
     points, times = request.curves[joint]
-    seconds = (len(request.frames) - 1) / request.fps
     stepping = foot_stepping(request, joint) if times is None else None
     timing = stepping
     if times is None and joint == "Hip" and on_the_ground(request, points):
-        timing = functools.partial(generation.eased, ease=min(GROUND_EASE_S / max(seconds, 1e-9), 0.5))
+        timing = functools.partial(generation.eased, ease=min(GROUND_EASE_S / max(request.seconds, 1e-9), 0.5))
     samples = generation.curve_samples(points, count, span, times, timing)
     if stepping is not None:  # the ankle at its standing height over the path, lifted in each swing
-        progress = np.clip(np.arange(count + 1) / max(span, 1e-9), 0.0, 1.0)
-        samples[:, 2] = request.start_joints[J[joint], 2] + stepping.lift(progress) / request.metres_per_unit
+        lift = stepping.lift(generation.time_shares(count, span))
+        samples[:, 2] = request.start_joints[J[joint], 2] + lift / request.metres_per_unit
     return samples
 
 
@@ -191,8 +195,7 @@ def foot_stepping(request, joint):
     height = float(np.mean(points[:, 2])) - request.floor * request.metres_per_unit
     if length < generation.Stepping.SHORTEST_PATH_M or height > FOOT_PATH_HEIGHT_M:
         return None
-    seconds = (len(request.frames) - 1) / request.fps
-    return generation.Stepping(length, seconds, phase=0.5 if joint == "LFoot" else 0.0)
+    return generation.Stepping(length, request.seconds, phase=0.5 if joint == "LFoot" else 0.0)
 
 
 def on_the_ground(request, points):
@@ -214,7 +217,7 @@ def check_reach(request, given):
     scene metres."""
     to_body = given.placement.scale / request.metres_per_unit  # scene metres -> the model's metres
     feet = min(request.start_joints[J["LFoot"]][2], request.start_joints[J["RFoot"]][2])
-    seconds = (len(request.frames) - 1) / request.fps
+    seconds = request.seconds
     problems = []
     for joint, path in given.targets.items():
         name = f"curve {request.curve_names[joint]!r} ({request.rig.bones[joint]})"

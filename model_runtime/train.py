@@ -15,10 +15,10 @@ mean's decode), from the first stage's best validated weights. Each step's
 random draws come from the seed, the stage and the step
 (``distributed.Processes.rng``), so a run resumes exactly from its checkpoint,
 with any number of processes, and a second stage started from a first stage's
-saved weights (``--init W --steps 0``) is the one a whole run makes. Random turns about Z and mirroring; model selection on the validation
-clips only (best-of-10 ADE of prior samples over the evaluation masks
-k = 0..4, the quantity the evaluation reports; the prior mean's error rewards
-standing still). The first stage's learning rate follows cosine cycles with
+saved weights (``--init W --steps 0``) is the one a whole run makes. Random
+turns about Z and mirroring; model selection on the validation clips only
+(best-of-10 ADE of prior samples over the evaluation masks k = 0..4, the
+quantity the evaluation reports; the prior mean's error rewards standing still). The first stage's learning rate follows cosine cycles with
 warm restarts, so a longer run continues a shorter one's checkpoint exactly.
 
 The data: ../shared's CMU and ACCAD capture by default, or any BVH files and
@@ -320,7 +320,7 @@ def _train(parser, args, processes):
     started, running, interval = time.time() - run.elapsed, {}, []
     total_steps = config.steps + config.completion_steps
     first_stage_minutes = run.elapsed / 60 if run.step >= config.steps else None
-    pace_since, checked = (run.step, run.elapsed), 0
+    pace_since, first_step = (run.step, run.elapsed), run.step
     stage = None
     while run.step < total_steps:
         if stage != (1 if run.step < config.steps else 2):  # start or resume a stage: its trainable set, wrapped
@@ -345,7 +345,7 @@ def _train(parser, args, processes):
         torch.nn.utils.clip_grad_norm_(model.parameters(), 100.0)
         optimizer.step()
         processes.check_in_step(model, run.step)
-        run.step, checked = run.step + 1, checked + 1
+        run.step += 1
         checkpoints.smooth(running, parts)
         interval.append(total.item())
         run.elapsed = time.time() - started
@@ -370,7 +370,7 @@ def _train(parser, args, processes):
         if processes.main and (run.step % config.checkpoint_every == 0 or stage_end):
             run.save()
     if processes.world > 1:
-        processes.say(f"{processes.world} processes: weights identical after each of {checked} steps")
+        processes.say(f"{processes.world} processes: weights identical after each of {run.step - first_step} steps")
     if processes.main:
         model_card.write(out)
         print(f"done: {run.step} steps in {run.elapsed / 60:.1f} min, "

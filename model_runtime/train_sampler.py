@@ -173,7 +173,7 @@ def _train(parser, args, processes):
         sampler.train()
         return total.item(), parts
 
-    started, running, interval, checked = time.time() - run.elapsed, {}, [], 0
+    started, running, interval, first_step = time.time() - run.elapsed, {}, [], run.step
     sampler.train()
     while run.step < config.steps:
         rng = processes.rng(config.seed, 1, run.step)
@@ -189,7 +189,7 @@ def _train(parser, args, processes):
         total.backward()
         optimizer.step()
         processes.check_in_step(sampler, run.step)
-        run.step, checked = run.step + 1, checked + 1
+        run.step += 1
         checkpoints.smooth(running, parts)
         interval.append(total.item())
         run.elapsed = time.time() - started
@@ -212,7 +212,7 @@ def _train(parser, args, processes):
         if processes.main and (run.step % config.checkpoint_every == 0 or run.step == config.steps):
             run.save()
     if processes.world > 1:
-        processes.say(f"{processes.world} processes: weights identical after each of {checked} steps")
+        processes.say(f"{processes.world} processes: weights identical after each of {run.step - first_step} steps")
     processes.say(f"done: {run.step} steps in {run.elapsed / 60:.1f} min -> {folder / weights.SAMPLER_FILE}")
     return 0
 

@@ -169,14 +169,18 @@ def add_data_arguments(parser):
                         help="JSON files mapping the 14 joints to a library's bone names (docs/mapping-example.json)")
 
 
+def mapping_profiles(parser, paths):
+    """The profiles of the mapping files ``paths`` (--mapping); a bad one is a parser error."""
+    try:
+        return tuple(profiles.read_mapping(path) for path in paths)
+    except ValueError as error:
+        parser.error(str(error))
+
+
 def split_from_arguments(parser, args):
     """The ``Split`` that ``add_data_arguments``' options ask for; a bad mapping file or no usable
     clip is a parser error (one sentence)."""
-    try:
-        custom = tuple(profiles.read_mapping(path) for path in args.mapping)
-    except ValueError as error:
-        parser.error(str(error))
-    split = training_split(args.data, args.validation, custom)
+    split = training_split(args.data, args.validation, mapping_profiles(parser, args.mapping))
     for error in split.errors:
         print(f"skipped: {error}", file=sys.stderr)
     if not split.train or not split.validation:
