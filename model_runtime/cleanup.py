@@ -1,8 +1,9 @@
 """What turns the model's variants into animation an animator keeps, at the scene's frame rate in
 the model's frame (metres, Z up, the floor at z = 0 where the rig's toes stood at the start).
 
-``tidy`` runs the steps in order: the start eased out of the rig's pose
-(``ease_out_of_start``), the body put back on the floor (``on_floor``),
+``tidy`` runs the steps in order: the body carried along its hips' curve
+(``carried_by_hips``) and turned to face along a ground path (``facing_the_path``), the start
+eased out of the rig's pose (``ease_out_of_start``), the body put back on the floor (``on_floor``),
 carried against its planted feet's slide and kept within reach of its curves
 (``without_slide``), planted feet held still with their heading
 (``plant_feet``), eased onto the artist's keys (``ease_onto_keys``), and every
@@ -31,6 +32,10 @@ START_EASE_S = 0.25
 # Around a key, the model's own motion of the keyed joints is replaced by a smooth bridge over this
 # many seconds either side (it jumps onto the key at the last moment).
 KEY_BRIDGE_S = 0.25
+# Joints no key places (a rig keys the head bone, whose tail is no joint), carried along by the
+# joint that carries them: the head was left where the model put it while the keyed neck came down
+# into a crouch, and jumped 35 cm on the key's frame.
+CARRIED_BY_KEYED = {"Head": "Neck"}
 # Plants shorter than this are not held; a foot that lifts less than STEP_LIFT_M between two plants
 # shuffled along the floor and is held through.
 MIN_CONTACT_S = 0.1
@@ -46,6 +51,12 @@ STAND_SHARE = 0.97
 STEP_TRIGGER = 0.4
 STEP_S = 0.3
 STEP_CLEARANCE_M = 0.08
+# On a ground path the body is turned to face along it, the turn smoothed over this many seconds so
+# the pelvis keeps its sway within a stride, and eased in over FACING_EASE_S from the rig's own
+# facing; frames where the path moves slower than FACING_MIN_SPEED_M_S face as it did last (or first).
+FACING_SMOOTHING_S = 0.25
+FACING_EASE_S = 0.5
+FACING_MIN_SPEED_M_S = 0.2
 
 
 def on_floor(motion, fps, standing):
@@ -96,16 +107,21 @@ def ease_onto_keys(motion, keyed, fps):
     model jumps onto a key in the last frame or two before it, so each keyed joint's motion is
     first bridged over KEY_BRIDGE_S either side of its keys; then its offset from each key, zero
     at the first frame (the rig's own pose), is eased (smoothstep) from key to key and held after
-    the last, so nothing snaps on a key."""
+    the last, so nothing snaps on a key. Joints no key places go with the joint that carries them
+    (``CARRIED_BY_KEYED``)."""
     out = motion.copy()
     frames = np.arange(motion.shape[1])
     half = max(1, int(round(KEY_BRIDGE_S * fps)))
     joints = sorted({joint for keys in keyed.values() for joint in keys})
     for joint in joints:
+        carried = [J[joint]] + [J[child] for child, parent in CARRIED_BY_KEYED.items()
+                                if parent == joint and child not in joints]
         for index in sorted(index for index, keys in keyed.items() if joint in keys):
             start, end = max(index - half, 0), min(index + half, len(frames) - 1)
             if end - start > 1:
-                _bridge(out[:, :, J[joint]], start, end)  # a view: bridged in place
+                bridged = out[:, :, carried]  # a copy: bridged, then put back
+                _bridge(bridged, start, end)
+                out[:, :, carried] = bridged
         times = [0] + sorted(index for index, keys in keyed.items() if joint in keys)
         offsets = [np.zeros((len(motion), 3))] + [keyed[index][joint] - out[:, index, J[joint]]
                                                   for index in times[1:]]
@@ -114,7 +130,7 @@ def ease_onto_keys(motion, keyed, fps):
             span = slice(start, end + 1)
             ease = smoothstep((frames[span] - start) / max(end - start, 1))[None, :, None]
             layer[:, span] = before[:, None] + (after - before)[:, None] * ease
-        out[:, :, J[joint]] += layer
+        out[:, :, carried] += layer[:, :, None]
     return out
 
 
@@ -271,6 +287,30 @@ def plant_feet(motion, fps, standing, pinned, initial, predicted):
     return out, contacts, turns
 
 
+def facing_the_path(motion, initial, path, fps):
+    """Motion (V, F, 17, 3) turned about its hips, frame by frame, to face along a ground path
+    (F, 3) of the hips: the model walks the path but its body drifts off it (30 to 80 degrees on a
+    quarter circle). The turn is smoothed (FACING_SMOOTHING_S) and eased in from the start pose
+    (FACING_EASE_S); ``initial`` (17, 3) is the start pose, which steadies the hips' direction."""
+    travel = np.gradient(path[:, :2], axis=0)
+    moving = np.flatnonzero(np.linalg.norm(travel, axis=-1) * fps > FACING_MIN_SPEED_M_S)
+    if not len(moving):
+        return motion
+    nearest = moving[np.abs(np.arange(len(path))[:, None] - moving[None]).argmin(axis=1)]
+    wanted = np.arctan2(travel[nearest, 1], travel[nearest, 0])  # (F,)
+    across = np.stack([steady_across(initial, variant)[0] for variant in motion])  # (V, F, 3), left
+    forward = np.cross(across, np.array([0.0, 0.0, 1.0]))
+    turn = np.unwrap(np.angle(np.exp(1j * (wanted - np.arctan2(forward[..., 1], forward[..., 0])))), axis=-1)
+    turn = smooth(turn, FACING_SMOOTHING_S * fps) * smoothstep(np.arange(len(path)) / max(FACING_EASE_S * fps, 1.0))
+    cos, sin = np.cos(turn)[..., None], np.sin(turn)[..., None]
+    hips = motion[:, :, J["Hip"], None, :2]
+    offset = motion[..., :2] - hips
+    out = motion.copy()
+    out[..., 0] = (hips[..., 0] + cos * offset[..., 0] - sin * offset[..., 1])
+    out[..., 1] = (hips[..., 1] + sin * offset[..., 0] + cos * offset[..., 1])
+    return out
+
+
 def pin(motion, targets, axes, keyed):
     """Motion with each curve's joint on its target (F, 3) on every frame ({joint: targets}), on the
     coordinates it follows ({joint: (3,) bool}), and each keyed joint on its key ({frame index:
@@ -316,7 +356,10 @@ def tidy(motion, fps, initial, targets, axes, keyed, predicted):
     (3,)}}) met exactly; a curve of the hips carries the whole body (``carried_by_hips``)."""
     standing = min(initial[J[foot], 2] for foot in FEET)
     on_curves = pinned_joints(motion.shape[1], targets, {})  # keys ease in after the feet are planted
-    motion = on_floor(ease_out_of_start(carried_by_hips(motion, targets, axes), fps), fps, standing)
+    motion = carried_by_hips(motion, targets, axes)
+    if "Hip" in targets and not axes["Hip"][2]:  # a ground path: walk facing along it
+        motion = facing_the_path(motion, initial, targets["Hip"], fps)
+    motion = on_floor(ease_out_of_start(motion, fps), fps, standing)
     motion = without_slide(motion, fps, standing, on_curves, initial, targets, predicted)
     motion, contacts, turns = plant_feet(motion, fps, standing, on_curves, initial, predicted)
     return pin(ease_onto_keys(motion, keyed, fps), targets, axes, keyed), contacts, turns

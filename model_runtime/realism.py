@@ -32,8 +32,19 @@ def _cos(a, b):
     return (a * b).sum(0) / (_norm(a) * _norm(b))
 
 
+def _hinge(thigh, shin, hips):
+    """The knee's signed bend: sin(bend) x cos(hinge axis, hip line), positive bent forwards.
+
+    Scaled by the bend, so a nearly straight knee (whose hinge axis is noise) reads near 0 and
+    the fitted range tells a knee bent backwards from one bent forwards (a bare cosine of the
+    axis spans -1..1 over straight legs and caught 10 % of backward knees).
+    """
+    return (torch.cross(thigh, shin, dim=0) * hips).sum(0) / (_norm(thigh) * _norm(shin) * _norm(hips))
+
+
 def joint_angle_cosines(poses):
-    """Cosines of the ``ANGLE_NAMES`` angles for poses (..., 17, 3): (..., 16).
+    """Cosines of the ``ANGLE_NAMES`` angles for poses (..., 17, 3): (..., 16); the knee hinges
+    are signed bends (``_hinge``).
 
     Coordinates go first, (3, 17, ...), so each joint is one contiguous block and a dot product
     adds three whole arrays (28x faster than reducing a trailing axis of 3 on pools of motions).
@@ -53,7 +64,7 @@ def joint_angle_cosines(poses):
         cosines.append(_cos(p[side + "Foot"] - p[side + "Knee"], p[side + "Knee"] - p[side + "Hip"]))
     for side in "LR":  # a knee bends one way only: its hinge axis stays along the hip line
         thigh, shin = p[side + "Knee"] - p[side + "Hip"], p[side + "Foot"] - p[side + "Knee"]
-        cosines.append(_cos(torch.cross(thigh, shin, dim=0), hips))
+        cosines.append(_hinge(thigh, shin, hips))
     for side in "LR":
         cosines.append(_cos(p[side + "Elbow"] - p[side + "Shoulder"], forward))
     for side in "LR":

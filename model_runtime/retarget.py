@@ -41,6 +41,10 @@ MAX_LEAN_TO_HAND = 30.0
 # upper-limb lengths) at which the generated direction counts half.
 MAX_BEND_TURN = {"leg": 30.0, "arm": 90.0}
 POLE_PRIOR = 0.2
+KEYED_BEND_TRUST = 0.05  # a keyed middle joint this far (upper-limb lengths) off its limb's line sets the bend
+# No knee or elbow folds tighter than captured ones do: the cosine between the upper and lower
+# bones' directions stays above this (the fitted angle limits: -0.93 to -0.94).
+TIGHTEST_FOLD_COS = -0.92
 REQUIRED_JOINTS = ("Hip",) + tuple(joint for limb in LIMBS for joint in limb) + ("Thorax", "Neck")
 
 
@@ -262,25 +266,43 @@ def _limb(rig, targets, parent, upper, lower, end, heading, fixed):
     root = _apply(parent, start[J[upper]])
     first, second = (np.linalg.norm(start[J[b]] - start[J[a]]) for a, b in ((upper, lower), (lower, end)))
     to_end = targets[:, J[end]] - root
-    reach = np.clip(np.linalg.norm(to_end, axis=-1), abs(first - second) + 1e-6, first + second - 1e-6)
+    tightest = np.sqrt(first ** 2 + second ** 2 + 2.0 * first * second * TIGHTEST_FOLD_COS)
+    reach = np.clip(np.linalg.norm(to_end, axis=-1), max(abs(first - second) + 1e-6, tightest), first + second - 1e-6)
     along = _unit(to_end)
     initial_upper = start[J[lower]] - start[J[upper]]
     initial_hinge = np.cross(initial_upper, start[J[end]] - start[J[lower]])
-    if np.linalg.norm(initial_hinge) < 0.05 * first * second:  # straight at the start
+    straight = np.linalg.norm(initial_hinge) < 0.05 * first * second
+    if straight:
         initial_hinge = _straight_hinge(rig, upper)
     # Bend toward the generated middle joint, turned about the limb at most MAX_BEND_TURN from the
     # way the limb bends about its own hinge (carried by its parent: knees forward), and less as
     # the generated limb straightens (its bend direction becomes noise) or bends backwards (a
     # hinge cannot), so the bend never flips from one side to the other.
-    own_bend = _unit(np.cross(along, parent[:, :3, :3] @ initial_hinge))
+    if end.endswith("Foot"):
+        own_bend = _unit(np.cross(along, parent[:, :3, :3] @ initial_hinge))
+    else:
+        reference = parent[:, :3, :3] @ _elbow_reference(rig, upper, lower, end, straight)
+        own_bend = _unit(reference - np.sum(reference * along, axis=-1, keepdims=True) * along)
     side = np.cross(along, own_bend)
-    generated = targets[:, J[lower]] - root
+    # the generated limb's own bend (its middle joint off its root-to-end line), not its middle
+    # joint seen from the rig's root: where the rig's shoulder lands 20 cm from the generated one,
+    # the generated elbow seen from it pointed anywhere (elbows swung 30 cm in a frame)
+    generated_along = _unit(targets[:, J[end]] - targets[:, J[upper]])
+    generated = targets[:, J[lower]] - targets[:, J[upper]]
+    generated -= np.sum(generated * generated_along, axis=-1, keepdims=True) * generated_along
     bend_x, bend_y = np.sum(generated * own_bend, axis=-1), np.sum(generated * side, axis=-1)
     size = np.hypot(bend_x, bend_y)
     limit = np.radians(MAX_BEND_TURN["leg" if end.endswith("Foot") else "arm"])
     angle = np.arctan2(bend_y, bend_x)
     behind = np.clip((np.pi - np.abs(angle)) / (0.5 * np.pi), 0.0, 1.0)  # a bend generated backwards counts less
-    turn = fixed * angle + (1.0 - fixed) * np.clip(angle, -limit, limit) * behind * size / (size + POLE_PRIOR * first)
+    # A keyed bend is taken continuous in time (one wrapping from +180 to -180 degrees while the
+    # key's weight eased out swung an elbow 8 cm in a frame), and only as far as the keyed limb is
+    # bent at all (a straight arm's bend direction is noise that swung the elbow 5 cm in a frame).
+    keyed = np.unwrap(angle)
+    keyed -= 2.0 * np.pi * np.round(np.median(keyed) / (2.0 * np.pi))
+    as_keyed = fixed * np.clip(size / (KEYED_BEND_TRUST * first), 0.0, 1.0)
+    turn = as_keyed * keyed + (1.0 - as_keyed) * np.clip(angle, -limit, limit) * behind * size / (
+        size + POLE_PRIOR * first)
     pole = np.cos(turn)[:, None] * own_bend + np.sin(turn)[:, None] * side
     cos = (first ** 2 + reach ** 2 - second ** 2) / (2.0 * first * reach)
     middle = root + first * (cos[:, None] * along + np.sqrt(np.clip(1.0 - cos ** 2, 0.0, 1.0))[:, None] * pole)
@@ -301,6 +323,21 @@ def _limb(rig, targets, parent, upper, lower, end, heading, fixed):
     else:
         end_rotation = lower_rotation
     return {upper: upper_delta, lower: lower_delta, end: _rigid(end_rotation, start[J[end]], goal)}
+
+
+def _elbow_reference(rig, upper, lower, end, straight):
+    """The way an elbow points when nothing says otherwise (3,), in the rig's start pose: as it
+    bends there, or back and out from the shoulder where the arm is ``straight``. An arm rarely
+    reaches that way; an elbow bent about its hinge, as a knee is, flipped sides whenever the arm
+    passed the shoulder line (every lift from a T pose)."""
+    start = rig.joints
+    if not straight:
+        along = _unit(start[J[end]] - start[J[upper]])
+        bend = start[J[lower]] - start[J[upper]]
+        return _unit(bend - np.dot(bend, along) * along)
+    other = "LShoulder" if upper.startswith("R") else "RShoulder"
+    forward = np.cross(start[J["LHip"]] - start[J["RHip"]], start[J["Thorax"]] - start[J["Hip"]])
+    return _unit(_unit(start[J[upper]] - start[J[other]]) - _unit(forward))
 
 
 def _straight_hinge(rig, upper):

@@ -54,9 +54,17 @@ def test_a_4_m_floor_path_steps_without_the_body_sinking_on_rigify(scene, rigify
     the pelvis never drops to the floor between feet planted far apart (``retarget.MAX_PELVIS_DROP``;
     it fell 1 m and strayed up to 2.7 m off the path toward the feet before). The model does not yet
     walk along the path by itself: the hips are held on it and the feet partly dragged (planted toes
-    0.7-1.3 m/s, facing 18-36 degrees off the path, hips down to 0.6-0.7 of their standing height,
-    1-4 steps per foot)."""
+    0.7-1.3 m/s, hips down to 0.6-0.7 of their standing height, 1-4 steps per foot)."""
     rows = _figures(*_walk(scene, rigify, shots.walk, 120))
     for row in rows:
         assert min(row["steps"]) >= 1
         assert row["away"] <= 0.01 and row["sink"] <= 0.03 and row["hips"] >= 0.55
+
+
+def test_the_body_faces_along_a_quarter_circle(scene):
+    """Issue 17's facing target: within 20 degrees of the path's tangent on every frame, as played
+    (``cleanup.facing_the_path``; the model's own body faced up to 86 degrees off it)."""
+    scene.render.fps = FPS
+    rows = _figures(*_walk(scene, blender_rigs.mannequin_rig(scene), shots.quarter_turn, 120))
+    for row in rows:
+        assert row["facing"] <= 20.0 and row["away"] <= 0.02
