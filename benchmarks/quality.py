@@ -32,6 +32,7 @@ import trajevae_addon  # noqa: E402
 from model_runtime import animation_quality as quality  # noqa: E402
 from model_runtime import generation, realism  # noqa: E402
 from model_runtime.data import clips  # noqa: E402
+from model_runtime.model import ModelConfig  # noqa: E402
 from model_runtime.skeleton import JOINT_INDEX  # noqa: E402
 from trajevae_addon import api  # noqa: E402
 
@@ -49,7 +50,8 @@ acc: worst joint acceleration; spike: worst frame over median frame. steps: per 
 neck base from vertical. knee-in: knee pointing inward of forward. off-limit: frames outside the joint-angle
 limits fitted on the training data. spread: mean pairwise joint distance of the variants. curve: the bound joint
 to where its curve puts it. path: the hips' farthest from a ground path; facing: worst angle of the body's facing
-from the path's tangent; hip h: the hips' lowest height over their standing height. key: worst keyed joint at the key frame / the head top, which the keyed rotation of
+from the path's tangent; hip h: the hips' lowest height over their standing height; seam: the worst acceleration
+within 2 frames of where model windows meet over the worst elsewhere. key: worst keyed joint at the key frame / the head top, which the keyed rotation of
 the head bone places. Over variants: float, sink, acc, spike, lean, knee-in and key are the worst, the rest means.
 Capture, levelled: the clip with its capture floor levelled as the training data loader levels it; the tilt is
 how far that moved points up or down over the clip."""
@@ -140,11 +142,14 @@ def walk_figures(shot):
     """For a walk along a ground path (a Hip curve): the hips' farthest from the path, the worst
     facing off the path's tangent and the hips' lowest height over standing, worst over takes."""
     if "Hip" not in shot.curves:
-        return {"path cm": "-", "facing deg": "-", "hip h %": "-"}
+        return {"path cm": "-", "facing deg": "-", "hip h %": "-", "seam x": "-"}
     followed = [quality.path_following(joints, shot.curves["Hip"]) for joints in shot.joints]
+    joins = generation.window_joins(shot.joints.shape[1], FPS, ModelConfig().frames)
+    seams = [quality.seam(joints, FPS, joins) for joints in shot.joints] if joins else []
     return {"path cm": f"{100 * max(away for away, _ in followed):.0f}",
             "facing deg": f"{max(angles.max() for _, angles in followed):.0f}",
-            "hip h %": f"{100 * min(quality.hip_height_share(joints, shot.floor) for joints in shot.joints):.0f}"}
+            "hip h %": f"{100 * min(quality.hip_height_share(joints, shot.floor) for joints in shot.joints):.0f}",
+            "seam x": f"{max(seams):.1f}" if seams else "-"}
 
 
 def curve_error(shot):

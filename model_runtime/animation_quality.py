@@ -52,6 +52,18 @@ def pops(joints, fps):
     return float(per_frame.max()), float(per_frame.max() / max(np.median(per_frame), 1e-9))
 
 
+def seam(joints, fps, joins, near=2):
+    """The worst joint acceleration within ``near`` frames of the frame indices ``joins`` (where
+    model windows meet) over the worst elsewhere: above 1, the joins show."""
+    per_frame = accelerations(joints, fps)  # entry i: frame i + 1
+    close = np.zeros(len(per_frame), dtype=bool)
+    for frame in joins:
+        close[max(frame - 1 - near, 0):max(frame + near, 0)] = True
+    if close.all() or not close.any():
+        return float("nan")
+    return float(per_frame[close].max() / max(per_frame[~close].max(), 1e-9))
+
+
 def steps(toes, floor):
     """Steps per foot (2,): a lift above the floor by STEP_LIFT_M followed by a landing at least
     STEP_LENGTH_M (horizontally) from where the foot left."""

@@ -296,12 +296,15 @@ def facing_the_path(motion, initial, path, fps):
     moving = np.flatnonzero(np.linalg.norm(travel, axis=-1) * fps > FACING_MIN_SPEED_M_S)
     if not len(moving):
         return motion
-    nearest = moving[np.abs(np.arange(len(path))[:, None] - moving[None]).argmin(axis=1)]
+    frames = np.arange(len(path))
+    after = np.minimum(np.searchsorted(moving, frames), len(moving) - 1)
+    before = np.maximum(after - 1, 0)
+    nearest = np.where(np.abs(frames - moving[before]) <= np.abs(moving[after] - frames), moving[before], moving[after])
     wanted = np.arctan2(travel[nearest, 1], travel[nearest, 0])  # (F,)
     across = np.stack([steady_across(initial, variant)[0] for variant in motion])  # (V, F, 3), left
     forward = np.cross(across, np.array([0.0, 0.0, 1.0]))
     turn = np.unwrap(np.angle(np.exp(1j * (wanted - np.arctan2(forward[..., 1], forward[..., 0])))), axis=-1)
-    turn = smooth(turn, FACING_SMOOTHING_S * fps) * smoothstep(np.arange(len(path)) / max(FACING_EASE_S * fps, 1.0))
+    turn = smooth(turn, FACING_SMOOTHING_S * fps) * smoothstep(frames / max(FACING_EASE_S * fps, 1.0))
     cos, sin = np.cos(turn)[..., None], np.sin(turn)[..., None]
     hips = motion[:, :, J["Hip"], None, :2]
     offset = motion[..., :2] - hips

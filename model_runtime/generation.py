@@ -106,14 +106,12 @@ def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, samp
     motion = np.zeros((count, 1 + total, 17, 3), np.float32)
     motion[:, 0] = initial
     planted = None
-    start, done = 0, 0  # window initial frame; frames already generated
-    while done < total:
-        frames = min(window, total - start)
+    for start, frames, carried in windows(total, window, overlap):
+        done = start + carried  # frames already generated
         given = np.zeros((count, window, 17, 3), np.float32)
         known = np.zeros((count, window, 17, 3), np.float32)
         given[:, :frames] = trajectories[start:start + frames]
         known[:, :frames] = mask[start:start + frames]
-        carried = done - start  # frames already generated inside this window
         given[:, :carried] = motion[:, start + 1:done + 1]
         known[:, :carried] = 1.0
         if start == 0:
@@ -130,11 +128,31 @@ def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, samp
         planted[:, start + 1:done + 1] = planted[:, start + 1:done + 1] * (1.0 - fade) + feet[:, :carried] * fade
         motion[:, done + 1:start + frames + 1] = new[:, carried:frames]
         planted[:, done + 1:start + frames + 1] = feet[:, carried:frames]
+        if progress is not None:
+            progress((start + frames) / total)
+    return motion, planted
+
+
+def window_joins(scene_frames, fps, window, overlap=WINDOW_OVERLAP):
+    """Frame indices of a shot (``scene_frames`` at ``fps``) where a later window's cross-fade
+    begins and where it ends (the seams a long shot could show)."""
+    total = model_frames(scene_frames, fps)
+    model = sorted({edge for start, _, carried in windows(total, window, overlap)[1:]
+                    for edge in (start + 1, start + carried + 1)})
+    return [int(round(frame * fps / NATIVE_FPS)) for frame in model if frame * fps / NATIVE_FPS < scene_frames]
+
+
+def windows(total, window, overlap=WINDOW_OVERLAP):
+    """The model windows of a ``total``-frame shot: (start, frames, carried) each, its initial
+    frame, its frames (up to ``window``) and how many of them the window before generated
+    already (cross-faded into this one's)."""
+    schedule, start, done = [], 0, 0
+    while done < total:
+        frames = min(window, total - start)
+        schedule.append((start, frames, done - start))
         done = start + frames
         start = done - overlap
-        if progress is not None:
-            progress(done / total)
-    return motion, planted
+    return schedule
 
 
 def eased(progress, ease):

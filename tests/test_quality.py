@@ -8,7 +8,7 @@ import pytest
 
 import blender_rigs
 import shots
-from model_runtime import animation_quality, cleanup, skeleton
+from model_runtime import animation_quality, cleanup, generation, skeleton
 from model_runtime.skeleton import JOINT_INDEX
 from trajevae_addon import api, pipeline
 from trajevae_addon import mannequin as mannequin_module
@@ -166,6 +166,23 @@ def test_a_body_that_does_not_turn_with_its_ground_path_is_turned_to_face_along_
     np.testing.assert_allclose(turned[:, JOINT_INDEX["Hip"]], path)  # turned about the hips
     np.testing.assert_allclose(np.linalg.norm(turned - turned[:, :1], axis=-1),
                                np.linalg.norm(sideways - sideways[:, :1], axis=-1), atol=1e-9)  # rigidly
+
+
+def test_long_shots_are_windows_that_overlap_and_a_step_at_a_join_shows_as_a_seam():
+    schedule = generation.windows(299, 60)  # 300 frames at 30 fps: 299 model frames after the initial one
+    assert schedule[0] == (0, 60, 0) and all(carried == generation.WINDOW_OVERLAP for _, _, carried in schedule[1:])
+    assert schedule[-1][0] + schedule[-1][1] == 299
+    assert all(start + frames - generation.WINDOW_OVERLAP == after for (start, frames, _), (after, _, _)
+               in zip(schedule, schedule[1:]))
+    joins = generation.window_joins(300, FPS, 60)
+    assert joins[:2] == [46, 61] and len(joins) == 2 * (len(schedule) - 1)
+    time = np.arange(300) / FPS
+    swaying = np.zeros((300, 17, 3))
+    swaying[..., 0] = 0.1 * np.sin(2.0 * np.pi * time)[:, None]  # a smooth sway
+    assert animation_quality.seam(swaying, FPS, joins) <= 1.0 + 1e-9
+    stepped = swaying.copy()
+    stepped[joins[3]:, :, 1] += 0.02  # 2 cm where the third window's own frames begin
+    assert animation_quality.seam(stepped, FPS, joins) > 3.0
 
 
 def test_feet_left_behind_step_after_the_body_through_a_long_shot():
