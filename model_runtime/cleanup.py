@@ -32,9 +32,9 @@ START_EASE_S = 0.25
 # Around a key, the model's own motion of the keyed joints is replaced by a smooth bridge over this
 # many seconds either side (it jumps onto the key at the last moment).
 KEY_BRIDGE_S = 0.25
-# Joints no key places (a rig keys the head bone, whose tail is no joint), carried along by the
-# joint that carries them: the head was left where the model put it while the keyed neck came down
-# into a crouch, and jumped 35 cm on the key's frame.
+# Joints no key places (a rig keys the head bone, whose tail is no joint), bridged around the keys of
+# the joint that carries them: the model's head jumped 35 cm on the key's frame. (Moving it with the
+# neck's layer as well put the keyed head top 13 cm off, against 6-7, and bent the neck off its limits.)
 CARRIED_BY_KEYED = {"Head": "Neck"}
 # Plants shorter than this are not held; a foot that lifts less than STEP_LIFT_M between two plants
 # shuffled along the floor and is held through.
@@ -107,21 +107,21 @@ def ease_onto_keys(motion, keyed, fps):
     model jumps onto a key in the last frame or two before it, so each keyed joint's motion is
     first bridged over KEY_BRIDGE_S either side of its keys; then its offset from each key, zero
     at the first frame (the rig's own pose), is eased (smoothstep) from key to key and held after
-    the last, so nothing snaps on a key. Joints no key places go with the joint that carries them
-    (``CARRIED_BY_KEYED``)."""
+    the last, so nothing snaps on a key. Joints no key places are bridged with the joint that carries
+    them (``CARRIED_BY_KEYED``)."""
     out = motion.copy()
     frames = np.arange(motion.shape[1])
     half = max(1, int(round(KEY_BRIDGE_S * fps)))
     joints = sorted({joint for keys in keyed.values() for joint in keys})
     for joint in joints:
-        carried = [J[joint]] + [J[child] for child, parent in CARRIED_BY_KEYED.items()
-                                if parent == joint and child not in joints]
+        bridged_joints = [J[joint]] + [J[child] for child, parent in CARRIED_BY_KEYED.items()
+                                       if parent == joint and child not in joints]
         for index in sorted(index for index, keys in keyed.items() if joint in keys):
             start, end = max(index - half, 0), min(index + half, len(frames) - 1)
             if end - start > 1:
-                bridged = out[:, :, carried]  # a copy: bridged, then put back
+                bridged = out[:, :, bridged_joints]  # a copy: bridged, then put back
                 _bridge(bridged, start, end)
-                out[:, :, carried] = bridged
+                out[:, :, bridged_joints] = bridged
         times = [0] + sorted(index for index, keys in keyed.items() if joint in keys)
         offsets = [np.zeros((len(motion), 3))] + [keyed[index][joint] - out[:, index, J[joint]]
                                                   for index in times[1:]]
@@ -130,7 +130,7 @@ def ease_onto_keys(motion, keyed, fps):
             span = slice(start, end + 1)
             ease = smoothstep((frames[span] - start) / max(end - start, 1))[None, :, None]
             layer[:, span] = before[:, None] + (after - before)[:, None] * ease
-        out[:, :, carried] += layer[:, :, None]
+        out[:, :, J[joint]] += layer
     return out
 
 
