@@ -35,7 +35,7 @@ KEY_BRIDGE_S = 0.25
 # Joints no key places (a rig keys the head bone, whose tail is no joint), bridged around the keys of
 # the joint that carries them: the model's head jumped 35 cm on the key's frame. (Moving it with the
 # neck's layer as well put the keyed head top 13 cm off, against 6-7, and bent the neck off its limits.)
-CARRIED_BY_KEYED = {"Head": "Neck"}
+BRIDGED_WITH_KEYED = {"Head": "Neck"}
 # Plants shorter than this are not held; a foot that lifts less than STEP_LIFT_M between two plants
 # shuffled along the floor and is held through.
 MIN_CONTACT_S = 0.1
@@ -108,13 +108,13 @@ def ease_onto_keys(motion, keyed, fps):
     first bridged over KEY_BRIDGE_S either side of its keys; then its offset from each key, zero
     at the first frame (the rig's own pose), is eased (smoothstep) from key to key and held after
     the last, so nothing snaps on a key. Joints no key places are bridged with the joint that carries
-    them (``CARRIED_BY_KEYED``)."""
+    them (``BRIDGED_WITH_KEYED``)."""
     out = motion.copy()
     frames = np.arange(motion.shape[1])
     half = max(1, int(round(KEY_BRIDGE_S * fps)))
     joints = sorted({joint for keys in keyed.values() for joint in keys})
     for joint in joints:
-        bridged_joints = [J[joint]] + [J[child] for child, parent in CARRIED_BY_KEYED.items()
+        bridged_joints = [J[joint]] + [J[child] for child, parent in BRIDGED_WITH_KEYED.items()
                                        if parent == joint and child not in joints]
         for index in sorted(index for index, keys in keyed.items() if joint in keys):
             start, end = max(index - half, 0), min(index + half, len(frames) - 1)
