@@ -35,6 +35,8 @@ CHART = 90  # height in pixels of a chart over time
 CHARTS = (("toe height (-10 to 30 cm)", -0.1, 0.3, (0.0,)), ("acceleration (0 to 600 m/s^2)", 0.0, 600.0,
                                                              (100.0, 200.0, 300.0, 400.0, 500.0)))
 ONION = 6  # frames drawn per take
+WALK_TOP, WALK_SIDE = (520, 520), (520, 300)  # pixels of the walk figure's top and side views
+STRIDE_S, STRIDE_STEP_S = 1.2, 0.2  # the walk figure's side view: how long, how often
 SUNK_M = 0.01  # a toe this far below the floor is marked as sunk
 BACKGROUND, CHART_BACKGROUND, CHART_BAND = (1.0, 1.0, 1.0), (0.97, 0.97, 0.97), (0.85, 0.95, 0.85)
 GROUND, FLOOR_LINE, GRID = (0.93, 0.89, 0.82), (0.55, 0.4, 0.25), (0.88, 0.88, 0.88)
@@ -104,19 +106,20 @@ class Canvas:
 class View:
     """An orthographic view of a panel: world points (..., 3) -> pixels (..., 2)."""
 
-    def __init__(self, axes, centre, scale, corner):
+    def __init__(self, axes, centre, scale, corner, size=PANEL):
         self.axes, self.centre, self.scale, self.corner = axes, centre, scale, np.asarray(corner, float)
+        self.size = np.asarray(size, float)  # width, height in pixels
 
     def __call__(self, points):
         return self.flat(points @ self.axes.T)
 
     def flat(self, points):
         """Pixels (..., 2) of points (..., 2) given in the view's own axes (metres)."""
-        return self.corner + np.array(PANEL) / 2.0 + self.scale * (points - self.centre) * [1.0, -1.0]
+        return self.corner + self.size / 2.0 + self.scale * (points - self.centre) * [1.0, -1.0]
 
     def marks(self, axis, step=0.5):
         """Coordinates (N,) along the view's ``axis`` of multiples of ``step`` metres in the panel."""
-        half = 0.5 * PANEL[axis] / self.scale
+        half = 0.5 * self.size[axis] / self.scale
         return np.arange(np.ceil((self.centre[axis] - half) / step), (self.centre[axis] + half) / step) * step
 
 
@@ -128,8 +131,9 @@ def _views(forward):
     return dict(zip(VIEWS, (np.array([left, up]), np.array([forward, up]), np.array([-left, forward]))))
 
 
-def _layout(shot, axes):
-    """Per view the centre (2,), and one scale (pixels per metre) fitting everything the shot draws."""
+def _layout(shot, axes, size=PANEL):
+    """Per view the centre (2,), and one scale (pixels per metre) fitting everything the shot draws
+    into panels of ``size`` pixels."""
     points = [shot.joints.reshape(-1, 3), shot.toes.reshape(-1, 3), *shot.curves.values()]
     points = np.concatenate(points)
     points = np.concatenate([points, points * [1.0, 1.0, 0.0] + [0.0, 0.0, shot.floor]])  # the floor under it
@@ -138,15 +142,15 @@ def _layout(shot, axes):
         flat = points @ view_axes.T
         low, high = flat.min(0), flat.max(0)
         centres[name] = (low + high) / 2.0
-        scale = min(scale, *((np.array(PANEL) - 2 * MARGIN) / np.maximum(high - low, 0.3)))
+        scale = min(scale, *((np.array(size) - 2 * MARGIN) / np.maximum(high - low, 0.3)))
     return centres, scale
 
 
 def _floor(canvas, view, name, shot):
     """The ground with ticks every 0.5 m (front and side views) or a 0.5 m grid (top view)."""
     x0, y0 = view.corner.astype(int)
-    x1, y1 = x0 + PANEL[0], y0 + PANEL[1]
-    half = 0.5 * np.array(PANEL) / view.scale
+    x1, y1 = (view.corner + view.size).astype(int)
+    half = 0.5 * view.size / view.scale
     if name == "top":
         for axis in range(2):
             marks = view.marks(axis)
@@ -278,6 +282,43 @@ def save(path, title, shots):
             _take(canvas, views, shot, take)
         _charts(canvas, [(left, top) for top in tops[len(VIEWS):-1]], shot, take)
         labels.append((left, HEADER + LABEL - 6, caption, 12))
+    _write(path, canvas.pixels, labels)
+
+
+def walk(path, title, shot, take=0):
+    """One take of a walk at a glance, saved as a PNG at ``path``: seen from the top, the path
+    (magenta), the hips' path (blue) and a footprint on every frame a toe is planted (right black,
+    left blue); beside it, seen from the side at mid-shot, the body every ``STRIDE_STEP_S`` over
+    ``STRIDE_S``, from blue to red."""
+    joints, toes = shot.joints[take], shot.toes[take]
+    middle = len(joints) // 2
+    frames = middle + np.round(np.arange(0.0, STRIDE_S, STRIDE_STEP_S) * shot.fps).astype(int)
+    frames = frames[frames < len(joints)]
+    one = Shot(joints[None], toes[None], shot.floor, shot.fps, shot.curves)
+    top_axes = {"top": np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])}
+    side_axes = {"side": _views(facing(joints[middle]))["side"]}
+    strobe = Shot(joints[None, frames], toes[None, frames], shot.floor, shot.fps)
+    (top_centre, top_scale), (side_centre, side_scale) = ((centres[name], scale) for name, (centres, scale) in
+                                                          (("top", _layout(one, top_axes, WALK_TOP)),
+                                                           ("side", _layout(strobe, side_axes, WALK_SIDE))))
+    top = View(top_axes["top"], top_centre, top_scale, (GAP, HEADER), WALK_TOP)
+    side = View(side_axes["side"], side_centre, side_scale, (2 * GAP + WALK_TOP[0], HEADER), WALK_SIDE)
+    canvas = Canvas(3 * GAP + WALK_TOP[0] + WALK_SIDE[0], HEADER + WALK_TOP[1] + GAP)
+    _floor(canvas, top, "top", one)
+    _floor(canvas, side, "side", one)
+    for points in shot.curves.values():
+        canvas.path(top(points), CURVE, 3.0)
+    canvas.path(top(joints[:, JOINT_INDEX["Hip"]]), EARLY, 1.0)
+    planted = toes[..., 2] - shot.floor < PLANTED_BAND_M
+    for foot, colour in enumerate((RIGHT_TOE, LEFT_TOE)):
+        canvas.dots(top(toes[planted[:, foot], foot]), colour, 3.0, 0.8)
+    for order, frame in enumerate(frames):
+        share = order / max(1, len(frames) - 1)
+        _figure(canvas, side, joints[frame], toes[frame], (1 - share) * EARLY + share * LATE, 2.0, 0.85)
+    legend = (f"Top: the path (magenta), the hips (blue), toes planted (within {100 * PLANTED_BAND_M:.0f} cm "
+              "of the floor; right black, left blue); grid 0.5 m.",
+              f"Side, at mid-shot: the body every {STRIDE_STEP_S:.1f} s over {STRIDE_S:.1f} s, blue to red.")
+    labels = [(GAP, 18, title, 14)] + [(GAP, 38 + 15 * line, text, 11) for line, text in enumerate(legend)]
     _write(path, canvas.pixels, labels)
 
 

@@ -9,7 +9,8 @@ of a slow hand wave, and walks along paths on the floor bound to the hips
 every frame) with the figures of ../shared/notes/quality-measures.md, beside
 real capture of ../shared/mocap imported with Blender's own BVH importer and
 measured the same way. Prints one table per rig and writes contact sheets
-(see contact_sheet.py): out/quality_<rig>_<shot>.png and out/quality_capture.png.
+(see contact_sheet.py): out/quality_<rig>_<shot>.png and out/quality_capture.png, and the
+README's picture of a walk, docs/walk.png (footprints from the top, a stride from the side).
 """
 
 import csv
@@ -42,6 +43,7 @@ VARIANTS = 5
 SEED = 0
 MOCAP = ROOT.parent / "shared" / "mocap"
 OUT = ROOT / "out"
+WALK_FIGURE = ("rigify", "quarter turn")  # the README's picture of a walk: docs/walk.png
 CAPTURE = ("Female1_B03_Walk1", "02_01", "Female1_A07_Crouch", "Female1_A05_PickUpBox")  # MANIFEST file stems
 NOTES = """
 planted: mean horizontal speed of toes within 2 cm of the floor (the lower toe at the start frame). float, sink:
@@ -201,6 +203,9 @@ def main():
             rows.append((f"{label} ({frames} f)", figures(shot, limits, error)))
             contact_sheet.save(OUT / f"quality_{name}_{label}.png", f"{name}, {label}: {frames} frames at {FPS} fps, "
                                f"{VARIANTS} variants (seed {SEED}) as played", [("variant", shot)])
+            if (name, label) == WALK_FIGURE:
+                contact_sheet.walk(ROOT / "docs" / "walk.png", f"A path drawn on the floor and bound to the {name} "
+                                   f"rig's root: {label}, {frames} frames at {FPS} fps, variant 1", shot)
             print(f"{name} {label}: done at {time.perf_counter() - clock:.0f} s", flush=True)
         tables.append((f"{name}: {VARIANTS} variants per shot as played, beside capture", rows + capture_rows))
         seconds[name] = time.perf_counter() - started
