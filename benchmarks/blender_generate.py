@@ -68,8 +68,8 @@ def main():
     show(f"10 variants x 120 frames with two hand curves on a generated Rigify rig "
          f"({sum(map(bool, bones.values()))} joints mapped), best of 3:", best_of_three(rig, 10))
 
-    for binding in list(rig.trajevae.bindings):
-        api.unbind(rig, binding.bone)
+    for bone in [binding.bone for binding in rig.trajevae.bindings]:  # names first: unbinding removes items
+        api.unbind(rig, bone)
     scene.frame_end = 300
     curves, _ = shots.long_walk(rig)
     api.walk_along(rig, blender_rigs.curve(scene, "floor path", curves["Hip"]))
