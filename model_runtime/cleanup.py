@@ -228,25 +228,28 @@ def _layer(frames, runs, inside):
     return layer
 
 
-def _steps_when_left_behind(planted, ankle, hip, leg, fps):
-    """Planted frames (F,) of an ankle (F, 3) with a step cut in wherever its hip (F, 3) has moved
-    more than STEP_TRIGGER legs away from where the foot was planted (the body carried off by a
-    curve, say): the foot lifts for STEP_S and plants again under the body."""
+def _steps_when_left_behind(planted, ankles, hips, legs, fps):
+    """Planted frames (F, 2) of the ankles (F, 2, 3) with steps cut in wherever a foot's hip (F, 2, 3)
+    has moved more than STEP_TRIGGER legs (``legs`` (2,)) away from where the foot was planted (the
+    body carried off by a curve or a ground path while the model's feet glide): the foot lifts for
+    STEP_S and plants again under the body. A foot steps only while the other is planted, the one
+    left farther behind first, so feet carried off together step in turn instead of hopping."""
     planted = planted.copy()
     swing = max(2, int(round(STEP_S * fps)))
-    frame = 0
-    while True:
-        later = [(start, end) for start, end in _runs(planted) if end >= frame]
-        if not later:
-            return planted
-        start, end = later[0]
-        start = max(start, frame)
-        far = np.flatnonzero(np.linalg.norm(hip[start:end + 1, :2] - ankle[start, :2], axis=-1) > STEP_TRIGGER * leg)
-        if len(far):
-            planted[start + far[0]:start + far[0] + swing] = False
-            frame = start + far[0] + swing
-        else:
-            frame = end + 1
+    since = [0 if planted[0, side] else None for side in range(2)]  # the frame each foot was planted on
+    for frame in range(len(planted)):
+        for side in range(2):
+            if not planted[frame, side]:
+                since[side] = None
+            elif since[side] is None:
+                since[side] = frame
+        behind = [np.linalg.norm(hips[frame, side, :2] - ankles[since[side], side, :2]) / legs[side]
+                  if since[side] is not None else 0.0 for side in range(2)]
+        side = int(np.argmax(behind))
+        if behind[side] > STEP_TRIGGER and planted[frame, 1 - side]:
+            planted[frame:frame + swing, side] = False
+            since[side] = None
+    return planted
 
 
 def _lift(frames, runs, height):
@@ -272,13 +275,12 @@ def plant_feet(motion, fps, standing, pinned, initial, predicted):
     turns = np.repeat(pelvis[..., None], 2, axis=-1)
     contacts = _contact_flags(motion, fps, standing, pinned, predicted)
     frames = np.arange(motion.shape[1])
+    legs = [limb_length(initial, leg) for leg in LIMBS[:2]]
     for variant in range(len(motion)):
+        contacts[variant] = _steps_when_left_behind(contacts[variant], motion[variant][:, [J[f] for f in FEET]],
+                                                    motion[variant][:, [J[leg[0]] for leg in LIMBS[:2]]], legs, fps)
         for side, foot in enumerate(FEET):
             ankle, turn = motion[variant, :, J[foot]], pelvis[variant]
-            leg = LIMBS[side]
-            contacts[variant, :, side] = _steps_when_left_behind(contacts[variant, :, side], ankle,
-                                                                 motion[variant, :, J[leg[0]]],
-                                                                 limb_length(initial, leg), fps)
             runs = _runs(contacts[variant, :, side])
             held = lambda start, end: np.array([ankle[start, 0], ankle[start, 1], standing]) - ankle[start:end + 1]
             out[variant, :, J[foot]] += _layer(frames, runs, held)

@@ -194,5 +194,8 @@ def test_feet_left_behind_step_after_the_body_through_a_long_shot():
                                             np.zeros((1, frames, 2)))
     behind = np.linalg.norm(moved[0][:, feet, :2] - moved[0][:, [JOINT_INDEX["RHip"], JOINT_INDEX["LHip"]], :2], axis=-1)
     steps = [int((np.diff(contacts[0, :, side].astype(int)) == 1).sum()) for side in range(2)]  # plants after the first
-    print(f"carried 100 m: {steps} steps, feet at most {behind.max():.2f} m behind the hips")
-    assert min(steps) > 50 and behind.max() < 0.6
+    print(f"carried 100 m: {steps} steps, feet at most {behind.max():.2f} m behind the hips "
+          f"({behind[FPS:].max():.2f} after the first second)")
+    assert min(steps) > 50 and behind.max() < 0.7 and behind[FPS:].max() < 0.45
+    swinging = ~contacts[0]
+    assert not (swinging[:, 0] & swinging[:, 1]).any()  # in turn: never both feet in the air
