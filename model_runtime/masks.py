@@ -2,8 +2,9 @@
 
 One model serves drawn curves (a joint known on every frame), keyed poses
 (some joints on some frames), end-pose control (the whole last frame), ground
-paths (the hips' horizontal position only: the model chooses their height) and
-nothing at all (k = 0). Training mixes these families; evaluation uses the
+paths (the hips' horizontal position only: the model chooses their height),
+a long shot's later windows (their first frames carried whole) and nothing at
+all (k = 0). Training mixes these families; evaluation uses the
 paper's order of adding trajectories. A joint mask (T, J) stands for all three
 coordinates of each joint (``per_coordinate``).
 """
@@ -13,7 +14,12 @@ import numpy as np
 from .skeleton import JOINT_INDEX, NUM_JOINTS
 
 EVALUATION_ORDER = ("RFoot", "LFoot", "RWrist", "LWrist")
+ROOT = JOINT_INDEX["Hip"]
 BERNOULLI_KEEP = 0.15  # the paper: each joint masked with p = 0.85, for all frames
+# Share of training masks whose first 1-CARRIED_FRAMES frames are whole known poses: a later window
+# of a long shot, which carries the previous window's last frames (``generation.generate``).
+CARRIED_SHARE = 0.15
+CARRIED_FRAMES = 20
 
 
 def per_coordinate(mask):
@@ -23,6 +29,17 @@ def per_coordinate(mask):
     if isinstance(mask, np.ndarray):
         return np.repeat(mask[..., None], 3, axis=-1)
     return mask[..., None].expand(*mask.shape, 3)
+
+
+def body_steps(steps, mask):
+    """The decoder's base step of every joint coordinate (B, T, J, 3), numpy or torch: the given
+    steps (zero where not given) with the root's given horizontal step added to the unknown
+    horizontal coordinates (mask (B, T, J, 3)), so a body given a ground path travels with it."""
+    if isinstance(mask, np.ndarray):
+        horizontal = np.array([1.0, 1.0, 0.0], dtype=mask.dtype)
+    else:
+        horizontal = mask.new_tensor([1.0, 1.0, 0.0])
+    return steps + steps[..., ROOT:ROOT + 1, :] * horizontal * (1.0 - mask)
 
 
 def trajectory_mask(joint_names, frames):
@@ -38,7 +55,8 @@ def evaluation_mask(k, frames):
 
 
 def sample_training_masks(batch, frames, rng):
-    """A batch of training masks (B, T, J, 3) drawn from all families."""
+    """A batch of training masks (B, T, J, 3) drawn from all families, ``CARRIED_SHARE`` of them
+    continuing a previous window."""
     masks = np.zeros((batch, frames, NUM_JOINTS, 3), dtype=np.float32)
     family = rng.choice(7, size=batch, p=[0.30, 0.22, 0.13, 0.13, 0.08, 0.10, 0.04])
     hip = JOINT_INDEX["Hip"]
@@ -67,4 +85,6 @@ def sample_training_masks(batch, frames, rng):
         else:  # waypoints: the hips' horizontal position on a few frames
             mask[rng.choice(frames, size=rng.integers(1, 5), replace=False), hip, :2] = 1.0
             mask[-1, hip, :2] = 1.0
+        if rng.random() < CARRIED_SHARE:
+            mask[:rng.integers(1, CARRIED_FRAMES + 1)] = 1.0
     return masks

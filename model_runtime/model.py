@@ -18,8 +18,11 @@ to time, sees the encoded trajectories and initial pose, and predicts
 per-frame offsets summed from x0. It also sees, uncompressed, where each known
 joint is relative to x0 and its step from the previous frame (where both are
 known), and those steps are added to its offsets: a known joint follows its
-curve unless the network corrects it, and the bone-length loss makes the rest
-of the body come along.
+curve unless the network corrects it. Where the root's horizontal position is
+given (a ground path, a root curve), its step is also every unknown joint's
+horizontal base step (``body_steps``): the body travels with its hips unless
+the network moves it otherwise, so the decoder learns the gait, not the
+travel (a torso decoded without it lagged a given ground path by 0.2 m in 1 s).
 
 Summed offsets drift, and a body decoded from a prior sample barely follows
 its given wrists and feet (elbows 0.2-0.3 m off with the wrists given). A
@@ -39,7 +42,7 @@ import torch
 from torch import nn
 
 from .dct import dct_matrix
-from .masks import per_coordinate
+from .masks import body_steps, per_coordinate
 from .skeleton import NUM_JOINTS
 
 DECODE_CHUNK = 128  # sequences decoded at once
@@ -163,7 +166,7 @@ class TrajeVAE(nn.Module):
         frames = torch.cat([condition, pose_code[:, None].expand(-1, condition.shape[1], -1), given], dim=-1)
         first = self.decoder_input[0]
         condition_term = nn.functional.linear(frames, first.weight[:, self.config.latent:], first.bias)
-        steps = given[..., NUM_JOINTS * 3:NUM_JOINTS * 6].unflatten(-1, (NUM_JOINTS, 3))
+        steps = body_steps(given[..., NUM_JOINTS * 3:NUM_JOINTS * 6].unflatten(-1, (NUM_JOINTS, 3)), mask)
         return mean, log_var, (initial, condition_term, steps), pose_code
 
     def posterior(self, initial, future, mask, pose_code):

@@ -7,9 +7,10 @@ import json
 import sys
 from pathlib import Path
 
-from . import selection, weights
+from . import masks, selection, weights
 from .data import clips
 from .evaluate import METRICS
+from .skeleton import FLOOR_CONTACT_M
 
 ATTRIBUTION = """- The data used in this project was obtained from mocap.cs.cmu.edu. The database was created
   with funding from NSF EIA-0196217.
@@ -87,7 +88,8 @@ Beyond the paper: the known-coordinate mask is an input (a zero coordinate is am
 training masks vary over time as well as joints (keys, end poses, partial curves, ground
 paths and waypoints of the hips), and the decoder also sees, uncompressed, the known
 coordinates relative to the initial pose and their per-frame steps, so given curves are
-followed closely. Samples keep the known coordinates exactly as given (pose completion;
+followed closely; where the hips' horizontal path is given, its step is every other joint's
+horizontal base step too, so the body travels with its hips. Samples keep the known coordinates exactly as given (pose completion;
 every baseline below does the same), and a completion stage, trained after the rest,
 moves the other joints to fit what is given (absolute displacements from the decoded
 motion with the given joints pinned).
@@ -110,14 +112,17 @@ Parameters: {meta['parameters']:,}. Training: {train['steps']} steps planned, ba
 {train['batch']}, Adam (lr {train['learning_rate']}, warm-up then cosine cycles of {train['cycle']} steps),
 beta {train['beta']}, random turns about Z and mirroring, seed {train['seed']}; masks mix the
 paper's Bernoulli trajectories (p = 0.85 masked), the evaluation order, sparse keys, end
-poses, partial curves, ground paths and waypoints. {train['rest_start_share']:.0%} of the windows whose first
+poses, partial curves, ground paths and waypoints, and {masks.CARRIED_SHARE:.0%} of them carry their first
+1-{masks.CARRIED_FRAMES} frames whole, as a long shot's later windows do. {train['rest_start_share']:.0%} of the windows whose first
 pose stands start from a rest pose of their own skeleton (T to A, arms 0-50 degrees down)
 and turn into the capture over 15-30 frames, as rigs start in the add-on. Losses: the
 paper's (squared error, KL) plus foot contacts (cross-entropy of the predicted contacts
 against labels from the capture's sole height and ankle speed, weight {train['contact_weight']}) and
-GSPS realism on the reconstruction and, at {train['prior_realism_share']} x, on one prior sample per window:
-bone lengths ({train['bone_weight']}), joint-angle limits fitted on the training poses ({train['angle_weight']}),
-squared speed of planted feet ({train['skating_weight']}; the prior sample's own predicted contacts)
+GSPS realism on the reconstruction and, at {train['prior_realism_share']} x, on one prior sample per window,
+whose squared error on the known coordinates also counts ({train['prior_known_weight']} x):
+lengths of the rigid bones and torso segments ({train['bone_weight']}), joint-angle limits fitted on the training poses ({train['angle_weight']}),
+squared speed of planted feet ({train['skating_weight']}; on the prior sample, the feet it predicts planted
+and those within {FLOOR_CONTACT_M * 100:.0f} cm of the window's floor)
 and ankles below the window's floor ({train['floor_weight']}).
 Then the second stage: the completion stage alone ({config['completion_layers']} transformer layers) for
 {train['completion_steps']} steps (lr {train['completion_learning_rate']}, warm-up then one cosine decay), from the

@@ -16,7 +16,7 @@ import numpy as np
 
 from . import selection
 from .dct import dct_matrix
-from .masks import per_coordinate
+from .masks import body_steps, per_coordinate
 from .skeleton import NUM_JOINTS
 
 REINSTALL = "reinstall the TrajeVAE extension"
@@ -164,7 +164,7 @@ class NumpyTrajeVAE:
         given = np.concatenate([_given_steps(initial, trajectories, mask), self._mask_input(mask)], -1)
         frames = np.concatenate([condition, np.broadcast_to(pose_code[:, None], condition.shape), given], -1)
         condition_term = w.linear("decoder_input.0", frames.astype(np.float32), ".weight_condition")
-        steps = given[..., NUM_JOINTS * 3:NUM_JOINTS * 6].reshape(*mask.shape[:2], NUM_JOINTS, 3)
+        steps = body_steps(given[..., NUM_JOINTS * 3:NUM_JOINTS * 6].reshape(*mask.shape[:2], NUM_JOINTS, 3), mask)
         return mean, np.clip(log_var, -10.0, 10.0), (initial, condition_term, steps)
 
     def decode(self, z, encoded):

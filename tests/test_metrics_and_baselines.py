@@ -56,6 +56,8 @@ def test_training_masks_cover_every_family():
     ground = hip[..., :2].all(axis=-1) & (hip[..., 2] == 0)  # the hips' horizontal position only
     assert (ground.all(axis=1)).sum() > 20  # ground paths
     assert (ground.any(axis=1) & ~ground.all(axis=1)).sum() > 5  # waypoints
+    whole = batch.all(axis=(2, 3))  # (B, T): whole poses given
+    assert (whole[:, 0] & ~whole.all(axis=1)).sum() > 40  # a long shot's later windows: first frames carried
     partial = batch.any(axis=-1) & ~batch.all(axis=-1)
     assert np.array_equal(partial.any(axis=(1, 2)), ground.any(axis=1))  # only the hips go by coordinate
 

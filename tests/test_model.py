@@ -10,6 +10,7 @@ import torch
 from model_runtime import masks, metrics, train, weights
 from model_runtime.data import dataset
 from model_runtime.model import ModelConfig, with_given_joints
+from model_runtime.skeleton import JOINT_INDEX
 
 
 @pytest.fixture(scope="module")
@@ -31,6 +32,22 @@ def test_shipped_weights_are_small_plain_arrays():
     assert meta["data"]["validation"] == "subjects " + ", ".join(dataset.VALIDATION_SUBJECTS)
     assert ModelConfig(**meta["config"]) == ModelConfig()
     assert weights.load_model()[0].config == ModelConfig()
+
+
+def test_a_given_root_path_is_the_horizontal_base_step_of_every_joint_not_given():
+    rng = np.random.default_rng(0)
+    given = rng.normal(size=(1, 4, 17, 3)).astype(np.float32)
+    known = np.zeros_like(given)
+    known[:, :, 0, :2] = 1.0  # a ground path: the hips' x and y
+    known[:, :, 13] = 1.0  # a wrist curve
+    base = masks.body_steps(given * known, known)
+    np.testing.assert_array_equal(base[:, :, 13], given[:, :, 13])  # a given joint keeps its own step
+    np.testing.assert_array_equal(base[:, :, 0, :2], given[:, :, 0, :2])
+    for joint in (2, 9):
+        np.testing.assert_array_equal(base[:, :, joint, :2], given[:, :, 0, :2])  # travels with the hips
+        assert not base[:, :, joint, 2].any()  # but chooses its own height
+    torch.testing.assert_close(masks.body_steps(torch.from_numpy(given * known), torch.from_numpy(known)),
+                               torch.from_numpy(base))
 
 
 def test_samples_start_at_the_initial_pose_and_differ(model, validation_windows):
@@ -82,6 +99,31 @@ def _pinned_and_completed(model, windows, k, count, **sampling):
     errors = {name: np.mean([metrics.ade_fde(metrics.to_protocol(m), t) for m, t in zip(motion.numpy(), truth)], axis=0)
               for name, motion in motions.items()}
     return motions, errors, trajectories, known
+
+
+def test_a_ground_path_carries_the_whole_body_along(model, all_clips, manifest):
+    """Captured walks of the validation subjects (the hips travel over 1.5 m in 2 s) with the hips'
+    horizontal path given: the decoded prior samples keep their hips near it and the torso over
+    them, and the neck keeps its length. (The previous model's hips lagged 0.97 m behind, its chest
+    0.32 m behind its hips, and its neck grew 2.6x.)"""
+    _, validation = dataset.split_by_subject(all_clips, manifest)
+    windows = dataset.windows(validation, future=60, stride=30)
+    travel = np.linalg.norm(windows[:, -1, 0, :2] - windows[:, 0, 0, :2], axis=-1)
+    walks = torch.from_numpy(windows[travel > 1.5])
+    known = torch.zeros(*walks[:, 1:].shape)
+    known[..., 0, :2] = 1.0
+    initial, future = walks[:, 0], walks[:, 1:]
+    samples = model.sample(initial, future * known, known, 5, generator=torch.Generator().manual_seed(0),
+                           keep_given=False, decoded_only=True)
+    hips = (samples[..., 0, :2] - future[:, None, :, 0, :2]).norm(dim=-1).mean().item()
+    thorax, neck = JOINT_INDEX["Thorax"], JOINT_INDEX["Neck"]
+    chest = samples[..., thorax, :2] - samples[..., 0, :2] - (future[:, None, :, thorax, :2] - future[:, None, :, 0, :2])
+    neck = ((samples[..., neck, :] - samples[..., thorax, :]).norm(dim=-1).amax(-1)
+            / (initial[:, None, neck] - initial[:, None, thorax]).norm(dim=-1)).mean().item()
+    print(f"{len(walks)} walks: hips {hips:.3f} m off the path, chest {chest.norm(dim=-1).mean():.3f} m from where "
+          f"it is over the captured hips, neck up to {neck:.2f}x its length")
+    assert len(walks) >= 10 and hips < HIPS_ON_GROUND_PATH_M and chest.norm(dim=-1).mean() < CHEST_OVER_HIPS_M
+    assert neck < NECK_GROWTH
 
 
 def test_completion_stage_fits_the_body_to_the_given_joints(model, validation_windows):
