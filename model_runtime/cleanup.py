@@ -4,7 +4,8 @@ the model's frame (metres, Z up, the floor at z = 0 where the rig's toes stood a
 ``tidy`` runs the steps in order: the body carried along its hips' curve
 (``carried_by_hips``) and turned to face along a ground path (``facing_the_path``), the torso
 kept from leaning far beyond the start pose (``upright``), the start
-eased out of the rig's pose (``ease_out_of_start``), the body put back on the floor (``on_floor``),
+eased out of the rig's pose (``ease_out_of_start``), the body put back on the floor (``on_floor``)
+with its hips kept from sagging far below their start height (``hips_up``),
 carried against its planted feet's slide and kept within reach of its curves
 (``without_slide``), planted feet held still with their heading
 (``plant_feet``), eased onto the artist's keys (``ease_onto_keys``), and every
@@ -63,6 +64,11 @@ FACING_MIN_SPEED_M_S = 0.2
 # of any lean beyond that, LEAN_KEPT is kept (the model's long shots lean further window by window:
 # 40 degrees and more after 10 s of walking or waving, against 7-9 in captured walks). Measured on
 # the torso smoothed over LEAN_SMOOTHING_S. Keys and curves come after, so they still bend the body.
+# Likewise the hips sink freely to HIPS_FREE_SHARE of their start height over the lower ankle; of
+# any sag below that HIPS_KEPT is kept, the legs straightening up to STAND_SHARE of their length
+# (chained windows sank a walk's hips to 0.6 of standing in 10 s).
+HIPS_FREE_SHARE = 0.85
+HIPS_KEPT = 0.3
 LEAN_FREE_DEG = 15.0
 LEAN_KEPT = 0.3
 LEAN_SMOOTHING_S = 0.25
@@ -366,6 +372,26 @@ def upright(motion, initial, fps):
     return out
 
 
+def hips_up(motion, initial, fps, standing):
+    """Motion (V, F, 17, 3) with the body over the feet raised where the hips (smoothed over
+    LEAN_SMOOTHING_S) sag below HIPS_FREE_SHARE of their height in ``initial`` (17, 3) over the
+    floor ``standing`` (see HIPS_KEPT); the ankles stay, the knees rise half as far."""
+    height = smooth(motion[..., J["Hip"], 2], LEAN_SMOOTHING_S * fps) - standing  # (V, F)
+    lift = (1.0 - HIPS_KEPT) * np.clip(HIPS_FREE_SHARE * (initial[J["Hip"], 2] - standing) - height, 0.0, None)
+    legs = min(limb_length(initial, leg) for leg in LIMBS[:2])
+    ankles = motion[..., [J[foot] for foot in FEET], :]
+    reach = np.sqrt(np.maximum((STAND_SHARE * legs) ** 2 - np.sum(  # the hips' highest over the farther ankle
+        (ankles[..., :2] - motion[..., None, J["Hip"], :2]) ** 2, axis=-1), 0.0)) + ankles[..., 2]
+    lift = np.minimum(lift, np.maximum(reach.min(-1) - motion[..., J["Hip"], 2], 0.0))
+    if not lift.any():
+        return motion
+    out = motion.copy()
+    out[..., 2] += lift[..., None]
+    out[..., [J[foot] for foot in FEET], 2] -= lift[..., None]
+    out[..., [J["RKnee"], J["LKnee"]], 2] -= 0.5 * lift[..., None]
+    return out
+
+
 def pin(motion, targets, axes, keyed):
     """Motion with each curve's joint on its target (F, 3) on every frame ({joint: targets}), on the
     coordinates it follows ({joint: (3,) bool}), and each keyed joint on its key ({frame index:
@@ -415,7 +441,7 @@ def tidy(motion, fps, initial, targets, axes, keyed, predicted):
     if "Hip" in targets and not axes["Hip"][2]:  # a ground path: walk facing along it
         motion = facing_the_path(motion, initial, targets["Hip"], fps)
     motion = upright(motion, initial, fps)
-    motion = on_floor(ease_out_of_start(motion, fps), fps, standing)
+    motion = hips_up(on_floor(ease_out_of_start(motion, fps), fps, standing), initial, fps, standing)
     motion = without_slide(motion, fps, standing, on_curves, initial, targets, predicted)
     motion, contacts, turns = plant_feet(motion, fps, standing, on_curves, initial, predicted)
     return pin(ease_onto_keys(motion, keyed, fps), targets, axes, keyed), contacts, turns

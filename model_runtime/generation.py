@@ -6,7 +6,8 @@ origin, adult proportions. ``Placement`` maps a scene's units and floor into
 that frame and back; ``generate`` chains windows: each window after the first
 starts ``overlap`` frames before the previous one ends, sees those frames as
 known poses (all joints), and the two are cross-faded over the overlap, so
-there is no seam.
+there is no seam. Every frame keeps the initial pose's proportions above
+the hips (``with_proportions``).
 """
 
 from dataclasses import dataclass
@@ -15,7 +16,7 @@ import numpy as np
 
 from .data.clips import NATIVE_FPS
 from .masks import per_coordinate
-from .skeleton import JOINT_INDEX
+from .skeleton import JOINT_INDEX, JOINT_NAMES, PARENTS, UPPER_BODY
 
 # Hip-knee-ankle length of the training subjects (metres, 201 clips: 0.796 to
 # 0.880, median 0.808): rigs whose legs fall outside are scaled to the median.
@@ -89,6 +90,23 @@ def _window(model, initial, trajectories, mask, count, rng, diversity, sampler, 
     return motion + shift[:, None, None], planted
 
 
+def with_proportions(poses, reference):
+    """Poses (..., 17, 3) with every segment (joint to parent) above the hips as long as in
+    ``reference`` (17, 3), each in its own direction, from the hips out. Each window of a long shot
+    starts from the last one's poses, so a body the model stretched a little per window kept
+    stretching (a walk's neck reached 3.8x its length in 10 s). The legs are left as generated:
+    lengthened, the ankles moved with every frame's small length errors and planted feet slid."""
+    out = poses.copy()
+    for joint, parent in enumerate(PARENTS):
+        if parent < 0 or JOINT_NAMES[joint] not in UPPER_BODY:
+            continue
+        segment = poses[..., joint, :] - poses[..., parent, :]
+        length = np.linalg.norm(segment, axis=-1, keepdims=True)
+        out[..., joint, :] = out[..., parent, :] + segment * (
+            np.linalg.norm(reference[joint] - reference[parent]) / np.maximum(length, 1e-9))
+    return out
+
+
 def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, sampler=None, overlap=WINDOW_OVERLAP,
              progress=None):
     """``count`` motions (count, 1 + T, 17, 3) in the model frame, initial pose first, and how surely
@@ -127,6 +145,7 @@ def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, samp
             + new[:, :carried] * fade[..., None]
         planted[:, start + 1:done + 1] = planted[:, start + 1:done + 1] * (1.0 - fade) + feet[:, :carried] * fade
         motion[:, done + 1:start + frames + 1] = new[:, carried:frames]
+        motion[:, start + 1:start + frames + 1] = with_proportions(motion[:, start + 1:start + frames + 1], initial)
         planted[:, done + 1:start + frames + 1] = feet[:, carried:frames]
         if progress is not None:
             progress((start + frames) / total)

@@ -89,7 +89,8 @@ training masks vary over time as well as joints (keys, end poses, partial curves
 paths and waypoints of the hips), and the decoder also sees, uncompressed, the known
 coordinates relative to the initial pose and their per-frame steps, so given curves are
 followed closely; where the hips' horizontal path is given, its step is every other joint's
-horizontal base step too, so the body travels with its hips. Samples keep the known coordinates exactly as given (pose completion;
+horizontal base step too, so the body travels with its hips. Samples keep the known
+coordinates exactly as given (pose completion;
 every baseline below does the same), and a completion stage, trained after the rest,
 moves the other joints to fit what is given (absolute displacements from the decoded
 motion with the given joints pinned).
@@ -120,7 +121,8 @@ paper's (squared error, KL) plus foot contacts (cross-entropy of the predicted c
 against labels from the capture's sole height and ankle speed, weight {train['contact_weight']}) and
 GSPS realism on the reconstruction and, at {train['prior_realism_share']} x, on one prior sample per window,
 whose squared error on the known coordinates also counts ({train['prior_known_weight']} x):
-lengths of the rigid bones and torso segments ({train['bone_weight']}), joint-angle limits fitted on the training poses ({train['angle_weight']}),
+lengths of the rigid bones and torso segments ({train['bone_weight']}), joint-angle limits fitted on the
+training poses ({train['angle_weight']}),
 squared speed of planted feet ({train['skating_weight']}; on the prior sample, the feet it predicts planted
 and those within {FLOOR_CONTACT_M * 100:.0f} cm of the window's floor)
 and ankles below the window's floor ({train['floor_weight']}).

@@ -168,6 +168,25 @@ def test_a_body_that_does_not_turn_with_its_ground_path_is_turned_to_face_along_
                                np.linalg.norm(sideways - sideways[:, :1], axis=-1), atol=1e-9)  # rigidly
 
 
+def test_every_frame_keeps_the_initial_poses_proportions_above_the_hips():
+    initial = mannequin_module.REST_JOINTS.astype(np.float64)
+    rng = np.random.default_rng(0)
+    stretched = initial + rng.normal(scale=0.05, size=(4, 17, 3))  # four poses, every segment off
+    kept = generation.with_proportions(stretched, initial)
+    for joint, parent in enumerate(skeleton.PARENTS):
+        if parent < 0:
+            continue
+        if skeleton.JOINT_NAMES[joint] not in skeleton.UPPER_BODY:  # legs as generated
+            np.testing.assert_array_equal(kept[:, joint], stretched[:, joint])
+            continue
+        np.testing.assert_allclose(np.linalg.norm(kept[:, joint] - kept[:, parent], axis=-1),
+                                   np.linalg.norm(initial[joint] - initial[parent]), rtol=1e-9)
+        direction = lambda poses: (poses[:, joint] - poses[:, parent]) / np.linalg.norm(
+            poses[:, joint] - poses[:, parent], axis=-1, keepdims=True)
+        np.testing.assert_allclose(direction(kept), direction(stretched), atol=1e-9)
+    np.testing.assert_array_equal(kept[:, 0], stretched[:, 0])
+
+
 def test_long_shots_are_windows_that_overlap_and_a_step_at_a_join_shows_as_a_seam():
     schedule = generation.windows(299, 60)  # 300 frames at 30 fps: 299 model frames after the initial one
     assert schedule[0] == (0, 60, 0) and all(carried == generation.WINDOW_OVERLAP for _, _, carried in schedule[1:])
@@ -221,3 +240,22 @@ def test_a_torso_leaning_further_and_further_is_drawn_back_toward_the_start_pose
     np.testing.assert_allclose(upright[0, mild], motion[0, mild], atol=1e-9)
     lengths = np.linalg.norm(upright[0][:, above] - hip, axis=-1)
     np.testing.assert_allclose(lengths, np.linalg.norm(motion[0][:, above] - hip, axis=-1), atol=1e-9)
+
+
+def test_hips_sinking_further_and_further_are_raised_over_the_feet():
+    frames, initial = 300, mannequin_module.REST_JOINTS.astype(np.float64)
+    motion = _still(frames)
+    feet = [JOINT_INDEX["RFoot"], JOINT_INDEX["LFoot"]]
+    standing = initial[feet, 2].min()
+    start = initial[JOINT_INDEX["Hip"], 2] - standing
+    sag = np.linspace(0.0, 0.5, frames) * start  # the hips sink to half their height, feet on the floor
+    body = [joint for joint in range(17) if joint not in feet]
+    motion[0][:, body, 2] -= sag[:, None]
+    raised = cleanup.hips_up(motion, initial, FPS, standing)
+    share = (raised[0, :, JOINT_INDEX["Hip"], 2] - standing) / start
+    print(f"hips sunk to 0.50 of their height: {share[-1]:.2f} after")
+    np.testing.assert_allclose(raised[0][:, feet], motion[0][:, feet], atol=1e-12)
+    free = cleanup.HIPS_FREE_SHARE
+    assert share.min() > free - cleanup.HIPS_KEPT * (free - 0.5) - 0.02
+    untouched = sag / start < (1.0 - free) - 0.02
+    np.testing.assert_allclose(raised[0, untouched], motion[0, untouched], atol=1e-9)
