@@ -117,7 +117,8 @@ def test_a_ground_path_carries_the_whole_body_along(model, all_clips, manifest):
                            keep_given=False, decoded_only=True)
     hips = (samples[..., 0, :2] - future[:, None, :, 0, :2]).norm(dim=-1).mean().item()
     thorax, neck = JOINT_INDEX["Thorax"], JOINT_INDEX["Neck"]
-    chest = samples[..., thorax, :2] - samples[..., 0, :2] - (future[:, None, :, thorax, :2] - future[:, None, :, 0, :2])
+    over_hips = lambda motion: motion[..., thorax, :2] - motion[..., 0, :2]  # noqa: E731
+    chest = over_hips(samples) - over_hips(future[:, None])
     neck = ((samples[..., neck, :] - samples[..., thorax, :]).norm(dim=-1).amax(-1)
             / (initial[:, None, neck] - initial[:, None, thorax]).norm(dim=-1)).mean().item()
     print(f"{len(walks)} walks: hips {hips:.3f} m off the path, chest {chest.norm(dim=-1).mean():.3f} m from where "
