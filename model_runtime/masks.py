@@ -59,7 +59,7 @@ def sample_training_masks(batch, frames, rng):
     continuing a previous window."""
     masks = np.zeros((batch, frames, NUM_JOINTS, 3), dtype=np.float32)
     family = rng.choice(7, size=batch, p=[0.30, 0.22, 0.13, 0.13, 0.08, 0.10, 0.04])
-    hip = JOINT_INDEX["Hip"]
+    hip = ROOT
     for b, kind in enumerate(family):
         mask = masks[b]
         if kind == 0:  # the paper's constant-in-time Bernoulli trajectories
