@@ -60,7 +60,7 @@ STEP_CLEARANCE_M = 0.08
 FACING_SMOOTHING_S = 0.25
 FACING_EASE_S = 0.5
 FACING_MIN_SPEED_M_S = 0.2
-# The torso (hips to neck base) leans freely up to LEAN_FREE_DEG beyond the start pose's own lean;
+# The torso (hips to neck) leans freely up to LEAN_FREE_DEG beyond the start pose's own lean;
 # of any lean beyond that, LEAN_KEPT is kept (the model's long shots lean further window by window:
 # 40 degrees and more after 10 s of walking or waving, against 7-9 in captured walks). Measured on
 # the torso smoothed over LEAN_SMOOTHING_S. Keys and curves come after, so they still bend the body.

@@ -44,10 +44,12 @@ from . import augment, checkpoints, distributed, masks, metrics, model_card, rea
 from .contacts import foot_contacts
 from .data import clips, dataset
 from .model import ModelConfig, TrajeVAE, kl_divergence, parameter_count
-from .skeleton import FEET, FLOOR_CONTACT_M, indices, rigid_bone_lengths
+from .skeleton import (FEET, FLOOR_CONTACT_M, JOINT_NAMES, PARENTS, RIGID_BONE_JOINTS, indices,
+                       rigid_bone_lengths)
 
-TORSO_SEGMENTS = (("Hip", "Spine"), ("Spine", "Thorax"), ("Thorax", "Neck"), ("Thorax", "LShoulder"),
-                  ("Thorax", "RShoulder"))
+# The segments (parent, joint) that RIGID_BONE_JOINTS leaves out: hips-spine-thorax-neck and the clavicles.
+TORSO_SEGMENTS = tuple((JOINT_NAMES[parent], name) for name, parent in zip(JOINT_NAMES, PARENTS)
+                       if parent >= 0 and name not in RIGID_BONE_JOINTS)
 
 
 @dataclass(frozen=True)
