@@ -14,7 +14,8 @@ curve and key met exactly (``pin``). Motions are (V, F, 17, 3).
 
 import numpy as np
 
-from .filters import smooth, smoothstep, window_max, window_min
+from . import footsteps
+from .filters import runs, smooth, smoothstep, window_max, window_min
 from .retarget import steady_across
 from .skeleton import JOINT_INDEX, LIMBS, limb_length
 
@@ -150,23 +151,17 @@ def ease_onto_keys(motion, keyed, fps):
     return out
 
 
-def _runs(flags):
-    """(start, end) frame pairs, end inclusive, of the True runs in flags (F,)."""
-    edges = np.diff(np.concatenate([[0], flags.astype(np.int8), [0]]))
-    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1))
-
-
 def _contacts(ankle, fps, standing, free, predicted):
     """Planted frames (F,) of one ankle (F, 3): low, or a little higher where the model predicts it
     planted (``predicted`` (F,) in [0, 1]), on frames where it is ``free`` (F,) of keys and curves;
     gaps of a frame or two and shuffles closed, plants under MIN_CONTACT_S dropped."""
     height = ankle[:, 2] - standing
     planted = ((height < CONTACT_HEIGHT_M) | ((predicted > 0.5) & (height < MODEL_CONTACT_HEIGHT_M))) & free
-    for start, end in _runs(~planted):
+    for start, end in runs(~planted):
         between = 0 < start and end < len(planted) - 1 and free[start:end + 1].all()
         if between and (end - start < 2 or height[start:end + 1].max() < STEP_LIFT_M):
             planted[start:end + 1] = True
-    for start, end in _runs(planted):
+    for start, end in runs(planted):
         if (end - start + 1) / fps < MIN_CONTACT_S:
             planted[start:end + 1] = False
     return planted
@@ -191,14 +186,15 @@ def _contact_flags(motion, fps, standing, pinned, predicted):
     return flags
 
 
-def without_slide(motion, fps, standing, pinned, initial, targets, predicted):
+def without_slide(motion, fps, standing, pinned, initial, targets, predicted, stance=None):
     """The whole body moved against the slide of its planted feet: while a foot is planted, its
     horizontal drift is the body's, taken out frame by frame (where the hips are not pinned), as
     far as the hands and feet on curves ({joint: (F, 3)}) stay within reach of the body. What
     brings them back within reach is eased over REACH_EASE_S; its upward part raises the body
     above its feet (the legs straighten, up to STAND_SHARE of their length) rather than lifting
-    the feet off the floor. ``predicted`` (V, F, 2): the model's planted feet in [0, 1]."""
-    planted = _contact_flags(motion, fps, standing, pinned, predicted)  # (V, F, 2)
+    the feet off the floor. ``predicted`` (V, F, 2): the model's planted feet in [0, 1]; ``stance``
+    (V, F, 2) bool: the feet's planned plants, which replace those found in the motion."""
+    planted = _contact_flags(motion, fps, standing, pinned, predicted) if stance is None else stance  # (V, F, 2)
     velocity = np.diff(motion[..., [J[foot] for foot in FEET], :2], axis=1)  # (V, F - 1, 2, 2)
     both = planted[:, 1:] & planted[:, :-1]
     slide = (velocity * both[..., None]).sum(-2) / np.maximum(both.sum(-1), 1)[..., None]  # (V, F - 1, 2)
@@ -224,14 +220,14 @@ def without_slide(motion, fps, standing, pinned, initial, targets, predicted):
     return out
 
 
-def _layer(frames, runs, inside):
-    """An additive correction (F, ...) that is ``inside(start, end)`` (its values over the run)
-    within each run (start, end) and eases (smoothstep) from one run's last value to the next
+def _layer(frames, plants, inside):
+    """An additive correction (F, ...) that is ``inside(start, end)`` (its values over the plant)
+    within each plant (start, end), a run of planted frames, and eases (smoothstep) from one run's last value to the next
     run's first in between; 0 at the first frame, the last run's last value held after it."""
     values = inside(0, 0)[:1] * 0.0
     layer = np.repeat(values, len(frames), axis=0)
     before_frame, before_value = 0, values[0]
-    for start, end in runs:
+    for start, end in plants:
         inner = inside(start, end)
         if start > before_frame:
             span = slice(before_frame, start + 1)
@@ -276,42 +272,45 @@ def _steps_when_left_behind(planted, ankles, hips, legs, fps):
     return planted, ahead
 
 
-def _lift(frames, runs, height):
-    """A foot's added height (F,): an arc STEP_CLEARANCE_M high over each step between runs where
+def _lift(frames, plants, height):
+    """A foot's added height (F,): an arc STEP_CLEARANCE_M high over each step between plants where
     the foot (its own ``height`` (F,) over where it stands) does not lift by STEP_LIFT_M."""
     lift = np.zeros(len(frames))
-    for (_, before), (after, _) in zip(runs, runs[1:]):
+    for (_, before), (after, _) in zip(plants, plants[1:]):
         if after - before > 1 and height[before:after + 1].max() < STEP_LIFT_M:
             phase = (frames[before:after + 1] - before) / (after - before)
             lift[before:after + 1] = STEP_CLEARANCE_M * np.sin(np.pi * phase)
     return lift
 
 
-def plant_feet(motion, fps, standing, pinned, initial, predicted):
+def plant_feet(motion, fps, standing, pinned, initial, predicted, stance=None):
     """(motion, contacts (V, F, 2), foot turns (V, F, 2)), right foot first: each planted ankle
     held where it landed, on the floor, with its foot's turn about Z as it landed. The hold is an
     additive layer on the foot, eased from plant to plant through the step between, so no pop
     appears where a plant starts or ends. ``pinned`` (F, 17): joints the artist fixed on each
     frame, which are never planted; ``initial`` (17, 3) gives the legs' lengths; ``predicted``
-    (V, F, 2) the model's planted feet in [0, 1]."""
+    (V, F, 2) the model's planted feet in [0, 1]; ``stance`` (V, F, 2) bool: planned plants, taken
+    as they are (no steps cut in)."""
     out = motion.copy()
     pelvis = heading(motion, initial)
     turns = np.repeat(pelvis[..., None], 2, axis=-1)
-    contacts = _contact_flags(motion, fps, standing, pinned, predicted)
+    contacts = _contact_flags(motion, fps, standing, pinned, predicted) if stance is None else stance.copy()
     frames = np.arange(motion.shape[1])
     legs = [limb_length(initial, leg) for leg in LIMBS[:2]]
     for variant in range(len(motion)):
         hips = motion[variant][:, [J[leg[0]] for leg in LIMBS[:2]]]
-        contacts[variant], ahead = _steps_when_left_behind(contacts[variant], motion[variant][:, [J[f] for f in FEET]],
-                                                           hips, legs, fps)
+        ahead = np.zeros(contacts.shape[1:] + (2,))
+        if stance is None:
+            contacts[variant], ahead = _steps_when_left_behind(contacts[variant], motion[variant][:, [J[f] for f in FEET]],
+                                                               hips, legs, fps)
         for side, foot in enumerate(FEET):
             ankle, turn = motion[variant, :, J[foot]], pelvis[variant]
-            runs = _runs(contacts[variant, :, side])
+            plants = runs(contacts[variant, :, side])
             held = lambda start, end: (np.array([*(ankle[start, :2] + ahead[start, side]), standing])
                                        - ankle[start:end + 1])
-            out[variant, :, J[foot]] += _layer(frames, runs, held)
-            out[variant, :, J[foot], 2] += _lift(frames, runs, ankle[:, 2] - standing)
-            turns[variant, :, side] += _layer(frames, runs, lambda start, end: turn[start] - turn[start:end + 1])
+            out[variant, :, J[foot]] += _layer(frames, plants, held)
+            out[variant, :, J[foot], 2] += _lift(frames, plants, ankle[:, 2] - standing)
+            turns[variant, :, side] += _layer(frames, plants, lambda start, end: turn[start] - turn[start:end + 1])
     return out, contacts, turns
 
 
@@ -425,19 +424,26 @@ def pinned_joints(frames, targets, keyed, fps=None):
     return pinned
 
 
-def tidy(motion, fps, initial, targets, axes, keyed, predicted):
+def tidy(motion, fps, initial, targets, axes, keyed, predicted, steps=None):
     """(motion, contacts (V, F, 2), foot turns (V, F, 2)) of the variants (V, F, 17, 3) at ``fps``
     from the pose ``initial`` (17, 3): on the floor, eased onto the keys, planted feet still (those
     low, or a little higher where the model predicts them planted: ``predicted`` (V, F, 2)),
     every curve ({joint: (F, 3)}, on its axes {joint: (3,) bool}) and key ({frame index: {joint:
-    (3,)}}) met exactly; a curve of the hips carries the whole body (``carried_by_hips``)."""
+    (3,)}}) met exactly; a curve of the hips carries the whole body (``carried_by_hips``), and
+    the ankles take the steps planned under a ground path (``steps`` (V, F, 2, 3), right then left)
+    once the body faces along it (the model's own feet land up to 0.4 m short of them)."""
     standing = min(initial[J[foot], 2] for foot in FEET)
     on_curves = pinned_joints(motion.shape[1], targets, {})  # keys ease in after the feet are planted
     motion = carried_by_hips(motion, targets, axes)
     if "Hip" in targets and not axes["Hip"][2]:  # a ground path: walk facing along it
         motion = facing_the_path(motion, initial, targets["Hip"], fps)
+    stance = None
+    if steps is not None:
+        motion = motion.copy()
+        motion[:, :, [J[foot] for foot in FEET]] = steps
+        stance = np.stack([footsteps.stance(variant) for variant in steps])
     motion = upright(motion, initial, fps)
     motion = hips_up(on_floor(ease_out_of_start(motion, fps), fps, standing), initial, fps, standing)
-    motion = without_slide(motion, fps, standing, on_curves, initial, targets, predicted)
-    motion, contacts, turns = plant_feet(motion, fps, standing, on_curves, initial, predicted)
+    motion = without_slide(motion, fps, standing, on_curves, initial, targets, predicted, stance)
+    motion, contacts, turns = plant_feet(motion, fps, standing, on_curves, initial, predicted, stance)
     return pin(ease_onto_keys(motion, keyed, fps), targets, axes, keyed), contacts, turns

@@ -10,6 +10,12 @@ def smoothstep(x):
     return x * x * (3.0 - 2.0 * x)
 
 
+def runs(flags):
+    """(start, end) frame pairs, end inclusive, of the True runs in flags (F,)."""
+    edges = np.diff(np.concatenate([[0], flags.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1))
+
+
 def _windows(values, half):
     """Views (..., F, 2 half + 1) of frames t - half .. t + half of values (..., F). Beyond the ends
     the values go on as they were going (point-reflected about the end frames), so a steady trend

@@ -112,10 +112,10 @@ def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, samp
     """``count`` motions (count, 1 + T, 17, 3) in the model frame, initial pose first, and how surely
     each foot is planted on each frame (count, 1 + T, 2) in [0, 1] (the initial frame as the first).
 
-    initial (17, 3); trajectories (T, 17, 3) and mask (T, 17, 3) or (T, 17) of
-    the coordinates given on each frame after the initial one. The first window draws
-    ``count`` latents (with the diverse sampler when given); later windows
-    continue each motion with one prior sample. ``progress(fraction)`` is
+    initial (17, 3); trajectories (T, 17, 3), or each motion's (count, T, 17, 3), and mask
+    (T, 17, 3) or (T, 17) of the coordinates given on each frame after the initial one. The first
+    window draws ``count`` latents (with the diverse sampler when given; one per motion for
+    trajectories of their own); later windows continue each motion with one prior sample. ``progress(fraction)`` is
     called after each window (it may raise to stop the work).
     """
     window = model.frames
@@ -128,13 +128,17 @@ def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, samp
         done = start + carried  # frames already generated
         given = np.zeros((count, window, 17, 3), np.float32)
         known = np.zeros((count, window, 17, 3), np.float32)
-        given[:, :frames] = trajectories[start:start + frames]
+        given[:, :frames] = trajectories[..., start:start + frames, :, :]
         known[:, :frames] = mask[start:start + frames]
         given[:, :carried] = motion[:, start + 1:done + 1]
         known[:, :carried] = 1.0
         if start == 0:
-            new, feet = (part[0] for part in _window(model, initial[None], given[:1], known[:1], count, rng,
-                                                      diversity, sampler))
+            if trajectories.ndim == 4:
+                new, feet = (part[:, 0] for part in _window(model, np.repeat(initial[None], count, axis=0), given,
+                                                             known, 1, rng, diversity, sampler))
+            else:
+                new, feet = (part[0] for part in _window(model, initial[None], given[:1], known[:1], count, rng,
+                                                          diversity, sampler))
             planted = np.zeros((count, 1 + total, feet.shape[-1]), np.float32)
             planted[:, 0] = feet[:, 0]
         else:
@@ -186,41 +190,6 @@ def eased(progress, ease):
                     np.where(rest < ease, 1.0 - top * rest ** 2 / (2 * ease), top * (progress - ease / 2)))
 
 
-class Stepping:
-    """The timing of a foot path of ``length`` metres drawn on the floor without drawing times,
-    covered in ``seconds``: strides as long as people take at that speed, the foot planted for all
-    but ``SWING_SHARE`` of each stride and swinging between plants with an ease in and out, lifted
-    ``FOOT_LIFT_M`` at mid-swing. ``phase`` (a share of a stride) delays its swings: the left foot
-    swings half a stride after the right."""
-
-    # A foot's travel per stride at a speed v (m/s): about STRIDE_M + STRIDE_PER_SPEED_S * v
-    # (1.4 m at a 1.4 m/s walk, 1 m at a stroll).
-    STRIDE_M, STRIDE_PER_SPEED_S = 0.6, 0.55
-    SHORTEST_PATH_M = 1.0  # a foot path shorter than this is not a walk
-    SWING_SHARE = 0.4  # of each stride, the foot in the air (a walk: 40 %, with double support)
-    FOOT_LIFT_M = 0.1  # the ankle's lift at mid-swing, heel off to toe clearance
-
-    def __init__(self, length, seconds, phase=0.0):
-        stride = self.STRIDE_M + self.STRIDE_PER_SPEED_S * length / max(seconds, 1e-9)
-        self.strides, self.phase = max(1, round(length / stride)), phase
-
-    def _swing(self, progress):
-        """(strides completed (..,), share of the current swing done (..,) in [0, 1])."""
-        cycle = np.asarray(progress) * self.strides - self.phase
-        whole = np.floor(cycle)
-        return whole, np.clip((cycle - whole) / self.SWING_SHARE, 0.0, 1.0)
-
-    def __call__(self, progress):
-        """Share of the way covered at ``progress`` in [0, 1] of the time."""
-        whole, swing = self._swing(progress)
-        return np.clip((whole + swing * swing * (3.0 - 2.0 * swing)) / self.strides, 0.0, 1.0)
-
-    def lift(self, progress):
-        """The foot's lift above its path (m) at ``progress``: a half sine over each swing."""
-        _, swing = self._swing(progress)
-        return self.FOOT_LIFT_M * np.sin(np.pi * swing)
-
-
 def time_shares(frames, span):
     """Share of the shot's time (1 + frames,) in [0, 1] on each frame: frame m at min(m / span, 1),
     ``span`` (model frames, possibly fractional) being where the scene's last frame falls."""
@@ -234,7 +203,7 @@ def curve_samples(points, frames, span, times=None, timing=None):
     Frame m sits at fraction min(m / span, 1) of the time: ``span`` (model
     frames, possibly fractional) is where the scene's last frame falls.
     ``timing`` maps that fraction to the share of the way covered (``eased``: a
-    walk starting and stopping; ``Stepping``: a foot's plants and swings);
+    walk starting and stopping; ``footsteps.Stepping``: a foot's plants and swings);
     none: at constant speed.
     """
     if times is not None:

@@ -129,7 +129,7 @@ def _bend_weight(upper, lower):
     return np.clip((bend - 5.0) / 20.0, 0.0, 1.0)
 
 
-def joint_deltas(rig, targets, pinned=None, foot_turns=None, hips_on_path=False):
+def joint_deltas(rig, targets, pinned=None, foot_turns=None, hips_on_path=False, foot_pitches=None):
     """World deltas joint -> (F, 4, 4) for every mapped joint, from targets (F, 17, 3).
 
     ``pinned`` (F, 17), optional: joints the artist fixed on each frame; a
@@ -138,7 +138,8 @@ def joint_deltas(rig, targets, pinned=None, foot_turns=None, hips_on_path=False)
     optional: each foot's turn about Z since the start (right, left; a planted
     foot keeps its own), else the pelvis's. ``hips_on_path``: the hips'
     horizontal position is given (a ground path), so the feet's reach may
-    lower the pelvis but not move it off the path.
+    lower the pelvis but not move it off the path. ``foot_pitches`` (F, 2),
+    optional: each foot's pitch, toes down (radians), as it rolls onto its toes.
     """
     start, frames = rig.joints, len(targets)
     deltas = {}
@@ -176,9 +177,11 @@ def joint_deltas(rig, targets, pinned=None, foot_turns=None, hips_on_path=False)
     heading = np.arctan2(pelvis[:, 1, 0], pelvis[:, 0, 0])  # turn of the pelvis about Z
     turns = {"RFoot": heading, "LFoot": heading} if foot_turns is None else {
         "RFoot": foot_turns[:, 0], "LFoot": foot_turns[:, 1]}
+    pitches = {} if foot_pitches is None else {"RFoot": foot_pitches[:, 0], "LFoot": foot_pitches[:, 1]}
     for upper, lower, end in LIMBS:
         fixed = np.zeros(frames) if pinned is None else pinned[:, J[lower]]
-        deltas.update(_limb(rig, targets, carried(upper), upper, lower, end, turns.get(end), fixed))
+        deltas.update(_limb(rig, targets, carried(upper), upper, lower, end, turns.get(end), fixed,
+                            pitches.get(end)))
     return deltas
 
 
@@ -263,10 +266,11 @@ def _reach_feet(rig, targets, pelvis, free, hips_on_path=False, rounds=4):
     return pelvis
 
 
-def _limb(rig, targets, parent, upper, lower, end, heading, fixed):
+def _limb(rig, targets, parent, upper, lower, end, heading, fixed, pitch=None):
     """Deltas of a limb's three joints: a two-bone solve toward the end target; a foot keeps its
-    initial orientation turned by ``heading`` (F,) about Z (None for a hand). Where ``fixed`` (F,)
-    is 1 the artist put the middle joint where it is (a key), so its bend is taken as given."""
+    initial orientation pitched toes down by ``pitch`` (F,) (None: not) about its own left-right
+    axis, then turned by ``heading`` (F,) about Z (None for a hand). Where ``fixed`` (F,) is 1
+    the artist put the middle joint where it is (a key), so its bend is taken as given."""
     start = rig.joints
     root = _apply(parent, start[J[upper]])
     first, second = (np.linalg.norm(start[J[b]] - start[J[a]]) for a, b in ((upper, lower), (lower, end)))
@@ -325,6 +329,10 @@ def _limb(rig, targets, parent, upper, lower, end, heading, fixed):
         turn[:, 0, 0], turn[:, 0, 1], turn[:, 1, 0], turn[:, 1, 1], turn[:, 2, 2] = (
             np.cos(heading), -np.sin(heading), np.sin(heading), np.cos(heading), 1.0)
         end_rotation = turn
+        if pitch is not None:
+            toes = rig.matrices[rig.bones[end]][:3, 1] * np.array([1.0, 1.0, 0.0])  # the foot bone, level
+            across = np.broadcast_to(_unit(np.cross([0.0, 0.0, 1.0], toes)), (len(pitch), 3))
+            end_rotation = turn @ _axis_angle_matrix(across, pitch)
     else:
         end_rotation = lower_rotation
     return {upper: upper_delta, lower: lower_delta, end: _rigid(end_rotation, start[J[end]], goal)}

@@ -5,6 +5,8 @@
 1. ``model_input``: the curves and keys as the model's known joints, at its
    native 30 fps in its own frame (metres, floor at z = 0, see
    ``generation.Placement``), and each curve's target on every scene frame;
+   under a ground path of the hips, each variant's planned steps
+   (``planned_steps``) as known feet;
 2. ``generation.generate``: the model's variants over the whole shot;
 3. ``cleanup.tidy``: at the scene's frame rate, the variants put on the
    floor, eased onto the keys, planted feet held still, curves and keys met;
@@ -23,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import cleanup, generation, retarget
+from . import cleanup, footsteps, generation, retarget
 from .skeleton import FEET, JOINT_INDEX, NUM_JOINTS
 
 J = JOINT_INDEX
@@ -45,7 +47,7 @@ COMPARED_FRAMES = 300
 GROUND_PATH_HEIGHT = 0.5
 GROUND_EASE_S = 0.5
 # A foot curve drawn without times whose mean height over the floor is under this, at least
-# ``generation.Stepping.SHORTEST_PATH_M`` long, is a path of footsteps: the foot plants and swings
+# ``footsteps.Stepping.SHORTEST_PATH_M`` long, is a path of footsteps: the foot plants and swings
 # along it (``foot_stepping``).
 FOOT_PATH_HEIGHT_M = 0.15
 # Share of ``run``'s progress spent in the networks; the retarget takes the rest.
@@ -66,7 +68,8 @@ class Request:
     that stays put; start_joints (17, 3) and floor (the world height the feet stand on) in world
     units, ``metres_per_unit`` of them to the metre; curves: joint -> (points (P, 3) world, drawing
     times (P,) in seconds or None for uniform speed); curve_names: joint -> the curve's name;
-    keys: scene frame -> {joint: (3,) world position}.
+    keys: scene frame -> {joint: (3,) world position}; start_toes (2, 3): the toes (the foot bones'
+    tails, right then left) in world units at the start frame, or None.
     """
 
     count: int
@@ -84,6 +87,7 @@ class Request:
     curves: dict = field(default_factory=dict)
     curve_names: dict = field(default_factory=dict)
     keys: dict = field(default_factory=dict)
+    start_toes: np.ndarray = None
 
     @property
     def seconds(self):
@@ -97,7 +101,9 @@ class ModelInput:
     trajectories (T, 17, 3) and mask (T, 17, 3) of the known joint coordinates on the model frames
     after the initial one; targets: joint -> (F, 3) world position its curve asks for on each scene
     frame, of which axes: joint -> (3,) bool says the coordinates followed (a ground path: x and y);
-    keyed: scene frame index -> {joint: (3,) model-frame position}."""
+    keyed: scene frame index -> {joint: (3,) model-frame position}; steps: each variant's ankles
+    (V, 1 + T, 2, 3) and feet's pitches (V, 1 + T, 2), right then left, planned under a ground path
+    (``footsteps.planned_feet``), or None; with steps, trajectories are each variant's (V, T, 17, 3)."""
 
     placement: generation.Placement
     initial: np.ndarray
@@ -106,6 +112,7 @@ class ModelInput:
     targets: dict
     axes: dict
     keyed: dict
+    steps: np.ndarray = None
 
 
 @dataclass
@@ -163,8 +170,28 @@ def model_input(request):
         trajectories[:, J[joint]] = placement.to_model(path_samples(request, joint, steps, span)[1:])
         mask[:, J[joint]] = axes[joint]
         targets[joint] = path_samples(request, joint, len(frames) - 1, len(frames) - 1)
-    return ModelInput(placement, placement.to_model(request.start_joints), trajectories, mask, targets, axes,
-                      keyed)
+    initial = placement.to_model(request.start_joints)
+    steps = planned_steps(request, initial, trajectories, axes, keyed, _foot_length(request, placement))
+    if steps is not None:  # the model completes each variant's walking body around its planned steps
+        trajectories = np.repeat(trajectories[None], request.count, axis=0)
+        trajectories[:, :, [J[foot] for foot in FEET]], mask[:, [J[foot] for foot in FEET]] = steps[0][:, 1:], 1.0
+    return ModelInput(placement, initial, trajectories, mask, targets, axes, keyed, steps)
+
+
+def planned_steps(request, initial, trajectories, axes, keyed, foot):
+    """Each variant's steps (ankles (V, 1 + T, 2, 3), pitches (V, 1 + T, 2)) under a ground path of
+    the hips (model frame, at the model's rate), in its own gait (``footsteps.variant_gaits``),
+    where the artist gave the feet neither curves nor keys; else None. ``foot``: the rig's ankle to
+    toe length (model frame), about which the feet roll."""
+    ground = "Hip" in axes and not axes["Hip"][2]
+    if not ground or any(foot in axes or any(foot in joints for joints in keyed.values()) for foot in FEET):
+        return None
+    hips = np.concatenate([initial[None, J["Hip"], :2], trajectories[:, J["Hip"], :2]]).astype(np.float64)
+    plans = [footsteps.planned_feet(hips, initial, generation.NATIVE_FPS, gait, foot)
+             for gait in footsteps.variant_gaits(request.count, np.random.default_rng(request.seed))]
+    if plans[0] is None:
+        return None
+    return tuple(np.stack(part) for part in zip(*plans))
 
 
 def path_samples(request, joint, count, span):
@@ -185,7 +212,7 @@ def path_samples(request, joint, count, span):
 
 
 def foot_stepping(request, joint):
-    """The ``generation.Stepping`` of a foot path drawn on the floor (mean height within
+    """The ``footsteps.Stepping`` of a foot path drawn on the floor (mean height within
     FOOT_PATH_HEIGHT_M of it) long enough to walk, else None: a foot would glide along it at
     constant speed. The left foot swings half a stride after the right."""
     if joint not in FEET:
@@ -193,9 +220,9 @@ def foot_stepping(request, joint):
     points = request.curves[joint][0] * request.metres_per_unit
     length = float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
     height = float(np.mean(points[:, 2])) - request.floor * request.metres_per_unit
-    if length < generation.Stepping.SHORTEST_PATH_M or height > FOOT_PATH_HEIGHT_M:
+    if length < footsteps.Stepping.SHORTEST_PATH_M or height > FOOT_PATH_HEIGHT_M:
         return None
-    return generation.Stepping(length, request.seconds, phase=0.5 if joint == "LFoot" else 0.0)
+    return footsteps.Stepping(length, request.seconds, phase=0.5 if joint == "LFoot" else 0.0)
 
 
 def on_the_ground(request, points):
@@ -264,8 +291,15 @@ def run(request, model, sampler=None, progress=None, given=None):
     del motion
     planted = generation.to_scene_rate(planted[..., None], frames, request.fps)[..., 0]
     targets = {joint: given.placement.to_model(path).astype(np.float64) for joint, path in given.targets.items()}
+    steps = pitches = None
+    if given.steps is not None:
+        steps = generation.to_scene_rate(given.steps[0], frames, request.fps)  # (V, F, 2, 3)
+        pitches = generation.to_scene_rate(given.steps[1][..., None], frames, request.fps)[..., 0]
     scene_rate, contacts, turns = cleanup.tidy(scene_rate, request.fps, given.initial, targets, given.axes,
-                                               given.keyed, planted)
+                                               given.keyed, planted, steps)
+    if pitches is not None:
+        ankles = scene_rate[:, :, [J[foot] for foot in FEET], 2] - min(given.initial[J[foot], 2] for foot in FEET)
+        pitches = footsteps.toes_down(pitches, ankles, _foot_length(request, given.placement))
     report(INFERENCE_SHARE)  # a chance to stop before the retarget
     world = given.placement.to_world(scene_rate)
     del scene_rate
@@ -280,7 +314,8 @@ def run(request, model, sampler=None, progress=None, given=None):
     channels, shortfall = [], []
     for index in range(request.count):
         deltas = retarget.joint_deltas(request.rig, to_armature(world_to_armature, world[index]), pinned,
-                                       turns[index], hips_on_path="Hip" in given.axes and not given.axes["Hip"][2])
+                                       turns[index], hips_on_path="Hip" in given.axes and not given.axes["Hip"][2],
+                                       foot_pitches=None if pitches is None else pitches[index])
         keys = retarget.key_channels(retarget.bone_bases(request.rig, deltas), request.rotation_modes,
                                      request.root_bone)
         if not all(np.isfinite(values).all() for _, _, values in keys):
@@ -291,6 +326,15 @@ def run(request, model, sampler=None, progress=None, given=None):
                           for joint, path in curves_here.items()})
         report(INFERENCE_SHARE + (1.0 - INFERENCE_SHARE) * (index + 1) / request.count)
     return Result(world, contacts, given.targets, given.axes, channels, shortfall, _nearest_other(world))
+
+
+def _foot_length(request, placement):
+    """The rig's ankle-to-toe length over the ground in the model's frame (the mean of both feet),
+    or ``footsteps.FOOT_M`` without its toes."""
+    if request.start_toes is None:
+        return footsteps.FOOT_M
+    ankles = request.start_joints[[J[foot] for foot in FEET]]
+    return float(np.linalg.norm((request.start_toes - ankles)[:, :2], axis=-1).mean() * placement.scale)
 
 
 def _yaw(armature_to_world):

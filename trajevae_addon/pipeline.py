@@ -178,7 +178,7 @@ def prepare(armature, count=5, seed=0, diversity=1.0, scene=None):
         action = armature.animation_data.action if armature.animation_data else None
         key_frames = _key_frames(action, set(bones.values()) | roots, frames)
         moves = _moves_in_world(armature, action)
-        poses, world, floor = {}, [], []
+        poses, world, toes = {}, [], []
         try:
             for frame in sorted({int(frames[0]), *key_frames} | (set(frames.tolist()) if moves else set())):
                 scene.frame_set(frame)  # even the current one: the scene as played, not as last edited
@@ -187,15 +187,15 @@ def prepare(armature, count=5, seed=0, diversity=1.0, scene=None):
                     poses[frame] = rig_state.read(armature, bones, depsgraph, shown_by)
                     rig_state.check_finite(armature, poses[frame][0], frame)
                 if frame == frames[0]:
-                    floor.append(rig_state.floor_height(armature, bones, depsgraph, shown_by))
+                    toes.append(rig_state.toes(armature, bones, depsgraph, shown_by))
                 if moves:
                     world.append(np.array(armature.matrix_world, dtype=np.float64))
         finally:
             scene.frame_set(current)
         world = np.array(world) if moves else np.array(armature.matrix_world, dtype=np.float64)[None]
-        return key_frames, poses, world, floor[0]
+        return key_frames, poses, world, toes[0]
 
-    key_frames, poses, world, floor = _with_artist_action(armature, read_scene)
+    key_frames, poses, world, toes = _with_artist_action(armature, read_scene)
     if not np.isfinite(world).all() or abs(np.linalg.det(world[:, :3, :3])).min() < 1e-12:
         raise rig_state.RigError(f"{armature.name!r}: its object transform is not a number or flattens it "
                                  "(zero scale) on some frame; fix it before generating")
@@ -205,8 +205,8 @@ def prepare(armature, count=5, seed=0, diversity=1.0, scene=None):
             for frame, keyed in key_frames.items()}
     request = shot.Request(
         count, seed, diversity, rig, {bone: armature.pose.bones[bone].rotation_mode for bone in rig.bones.values()},
-        bones["Hip"], frames, scene.render.fps / scene.render.fps_base, world, joints, floor, metres_per_unit,
-        keys=keys)
+        bones["Hip"], frames, scene.render.fps / scene.render.fps_base, world, joints, float(toes[:, 2].min()),
+        metres_per_unit, keys=keys, start_toes=toes)
     for joint, (obj, use_drawing_speed) in paths.items():
         points, times = curves.path(obj, int(frames[0]))
         request.curves[joint] = (points, times if use_drawing_speed else None)

@@ -206,12 +206,12 @@ def read(armature, bones, depsgraph, shown_by=None):
     return state, joints @ world[:3, :3].T + world[:3, 3]
 
 
-def floor_height(armature, bones, depsgraph, shown_by=None):
-    """The world height the rig stands on now: its lower toe (the tail of each foot's bone, or of
-    the bone that shows it)."""
+def toes(armature, bones, depsgraph, shown_by=None):
+    """World positions (2, 3) of the rig's toes now, right then left: the tail of each foot's bone,
+    or of the bone that shows it. The lower one is the floor the rig stands on."""
     pose, world = armature.evaluated_get(depsgraph).pose.bones, np.array(armature.matrix_world, dtype=np.float64)
     feet = [(shown_by or {}).get(bones[foot], bones[foot]) for foot in ("RFoot", "LFoot")]
-    return float(min((world[:3, :3] @ np.array(pose[foot].tail) + world[:3, 3])[2] for foot in feet))
+    return np.array([world[:3, :3] @ np.array(pose[foot].tail) + world[:3, 3] for foot in feet])
 
 
 def to_armature_space(armature, points):

@@ -1,0 +1,223 @@
+"""Footsteps: when and where feet plant and swing, for paths drawn without them.
+
+Two uses. ``Stepping`` times a foot path drawn on the floor without drawing
+times (the foot plants and swings along it). ``planned_feet`` plans both feet
+under a ground path of the hips: given only the hips' path, the model's feet
+glide along it at the hips' speed (ankles lifted 2-4 cm, planted ankles at
+0.8 m/s); given feet that step, it completes the walking body around them (hips
+at their standing height, ankles following the steps). Stride lengths and
+timing are those of captured walks: a stride (one foot's travel from plant to
+plant) of about STRIDE_M + STRIDE_PER_SPEED_S * speed, each foot in the air
+for SWING_SHARE of it, the feet half a stride apart.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .filters import runs, smoothstep
+from .skeleton import FEET, JOINT_INDEX, LIMBS, limb_length
+
+J = JOINT_INDEX
+
+# A foot's travel per stride at a speed v (m/s): about STRIDE_M + STRIDE_PER_SPEED_S * v
+# (1.4 m at a 1.4 m/s walk, 1 m at a stroll).
+STRIDE_M, STRIDE_PER_SPEED_S = 0.6, 0.55
+SWING_SHARE = 0.4  # of each stride, the foot in the air (a walk: 40 %, with double support)
+FOOT_LIFT_M = 0.1  # the ankle's lift at mid-swing, heel off to toe clearance
+
+# Planned feet: the hips walk while faster than WALKING_M_S (their speed smoothed over SPEED_SMOOTHING_S);
+# slower, the feet still step at MIN_CADENCE strides a second until both stand beside the hips. The
+# first foot lifts START_DELAY of a stride after the hips set off; steps shorter than SHORTEST_STEP_M are
+# not taken; each foot stands HALF_WIDTH_M (at least, at most) to its side of the hips' path.
+WALKING_M_S = 0.1
+SPEED_SMOOTHING_S = 0.25
+MIN_CADENCE = 0.6
+START_DELAY = 0.15
+SHORTEST_STEP_M = 0.05
+HALF_WIDTH_M = (0.05, 0.10)
+RESTS = (0.45, 0.95)  # shares of a stride where both feet are down (the left foot swings from 0.5)
+FULL_LIFT_STEP_M = 0.4  # shorter steps lift the foot in proportion
+FARTHEST_LANDING = 0.45  # legs (hip to ankle) from the hips, horizontally, to a landing as it lands
+UNDER_HIPS = 0.45  # share of its stance at which a planted foot is under the hips
+HEEL_OFF, HEEL_LIFT_M = 0.5, 0.12  # the last share of a stance rolled onto the toes; the heel's rise by lift-off
+FOOT_M = 0.2  # ankle to toe tip over the ground, an adult's (a rig's own where it has toes)
+STRIDE_SPREAD = (0.9, 1.1)  # stride scales of a walk's variants
+DELAY_SPREAD = (0.05, 0.25)  # their first lifts, in strides after the hips set off
+
+
+@dataclass(frozen=True)
+class Gait:
+    """How one take walks: its strides scaled by ``stride`` (longer, a slower cadence), its first
+    lift ``delay`` strides after the hips set off, led by the foot farther behind unless
+    ``other_foot_first``."""
+
+    stride: float = 1.0
+    delay: float = START_DELAY
+    other_foot_first: bool = False
+
+
+def stride_length(speed):
+    """A foot's travel (m) from plant to plant at a walking ``speed`` (m/s), as captured walks take."""
+    return STRIDE_M + STRIDE_PER_SPEED_S * speed
+
+
+class Stepping:
+    """The timing of a foot path of ``length`` metres drawn on the floor without drawing times,
+    covered in ``seconds``: strides as long as people take at that speed, the foot planted for all
+    but SWING_SHARE of each stride and swinging between plants with an ease in and out, lifted
+    FOOT_LIFT_M at mid-swing. ``phase`` (a share of a stride) delays its swings: the left foot
+    swings half a stride after the right."""
+
+    SHORTEST_PATH_M = 1.0  # a foot path shorter than this is not a walk
+
+    def __init__(self, length, seconds, phase=0.0):
+        stride = stride_length(length / max(seconds, 1e-9))
+        self.strides, self.phase = max(1, round(length / stride)), phase
+
+    def _swing(self, progress):
+        """(strides completed (..,), share of the current swing done (..,) in [0, 1])."""
+        cycle = np.asarray(progress) * self.strides - self.phase
+        whole = np.floor(cycle)
+        return whole, np.clip((cycle - whole) / SWING_SHARE, 0.0, 1.0)
+
+    def __call__(self, progress):
+        """Share of the way covered at ``progress`` in [0, 1] of the time."""
+        whole, swing = self._swing(progress)
+        return np.clip((whole + swing * swing * (3.0 - 2.0 * swing)) / self.strides, 0.0, 1.0)
+
+    def lift(self, progress):
+        """The foot's lift above its path (m) at ``progress``: a half sine over each swing."""
+        _, swing = self._swing(progress)
+        return FOOT_LIFT_M * np.sin(np.pi * swing)
+
+
+def gait_phase(speed, fps, gait):
+    """Strides walked by each frame (F,) at hip speeds (F,) m/s: while the hips walk (faster than
+    WALKING_M_S) the feet step at the cadence of captured walks (at least MIN_CADENCE), and each
+    walk's cadence is stretched a little so that the walk ends with both feet down (``RESTS``)
+    on the frame the hips stop: no foot is left mid-air or steps after the body has stopped.
+    ``gait`` (a ``Gait``) scales the strides and delays the first lift."""
+    cadence = np.maximum(speed / (gait.stride * stride_length(speed)), MIN_CADENCE) / fps
+    phase = np.full(len(speed), -gait.delay)
+    for start, end in runs(speed > WALKING_M_S):
+        now = phase[start - 1] if start else phase[0]
+        walked = cadence[start:end + 1].sum()
+        rests = np.floor(now) + np.arange(-1, np.ceil(walked) + 2)[:, None] + np.array(RESTS)
+        rests = rests.ravel()[rests.ravel() >= now]
+        stop = rests[np.argmin(np.abs(rests - (now + walked)))]
+        phase[end + 1:] = stop
+        phase[start:end + 1] = now + np.cumsum(cadence[start:end + 1]) * (stop - now) / max(walked, 1e-9)
+    return phase
+
+
+def planned_feet(hips, initial, fps, gait=None, foot=FOOT_M):
+    """(ankles (F, 2, 3), foot pitches (F, 2) radians, toes down), right then left, stepping under
+    the hips' ground path (F, 2) from the pose ``initial`` (17, 3) (its first frame), in a frame
+    with the floor at z = 0: each foot lands where the hips will be UNDER_HIPS of the way into
+    its stance, to its side of the path, rolls onto its toes before it lifts (``heel_roll``), at most
+    FARTHEST_LANDING legs from the hips as it lands (a first step from standing would reach for
+    the hips' cruising travel), and lifts FOOT_LIFT_M between plants (less for steps under
+    FULL_LIFT_STEP_M). The foot farther behind the direction of travel steps first, unless the
+    ``gait`` (a ``Gait``, by default the plain one) leads with the other. ``foot``: the ankle to
+    toe length over the ground. None where the hips never walk."""
+    frames = len(hips)
+    travel = np.gradient(hips, axis=0) * fps
+    speed = np.linalg.norm(travel, axis=-1)
+    half = max(1, int(round(SPEED_SMOOTHING_S * fps)))
+    speed = np.convolve(np.pad(speed, half, mode="edge"), np.ones(2 * half + 1) / (2 * half + 1), "valid")
+    moving = np.flatnonzero(speed > WALKING_M_S)
+    if not len(moving):
+        return None
+    forward = travel[moving[np.clip(np.searchsorted(moving, np.arange(frames)), 0, len(moving) - 1)]]
+    forward /= np.maximum(np.linalg.norm(forward, axis=-1, keepdims=True), 1e-9)
+    left = np.stack([-forward[:, 1], forward[:, 0]], axis=-1)
+    gait = gait or Gait()
+    phase = gait_phase(speed, fps, gait)
+    ankles = initial[[J[foot] for foot in FEET]].astype(np.float64)
+    floor_height = ankles[:, 2].min()
+    longest = FARTHEST_LANDING * min(limb_length(initial, leg) for leg in LIMBS[:2])
+    first = int(np.argmin((ankles[:, :2] - hips[0]) @ forward[0])) ^ int(gait.other_foot_first)
+    widths = np.clip(np.abs((ankles[:, :2] - hips[0]) @ left[0]), *HALF_WIDTH_M) * np.array([-1.0, 1.0])
+    strides = phase[:, None] - np.where(np.arange(2) == first, 0.0, 0.5)  # (F, 2): each foot's own strides
+    cycle = np.floor(strides)
+    swinging = (strides >= 0.0) & (strides - cycle < SWING_SHARE)
+    swings = sorted((start, end + 1, side) for side in range(2) for start, end in runs(swinging[:, side])
+                    for start, end in _split(start, end, cycle[:, side]))
+    feet = np.repeat(ankles[None], frames, axis=0)
+    for lift_off, end, side in swings:
+        landing = min(end, frames - 1)
+        rate = max(phase[landing] - phase[landing - 1], 1e-9)  # strides per frame
+        middle = min(landing + int(round((1.0 - SWING_SHARE) * UNDER_HIPS / rate)), frames - 1)
+        target = hips[middle] + widths[side] * left[middle]
+        reach = np.linalg.norm(target - hips[landing])
+        if reach > longest:
+            target = hips[landing] + (target - hips[landing]) * longest / reach
+        position, height = feet[lift_off, side, :2], feet[lift_off, side, 2]
+        step = np.linalg.norm(target - position)
+        if step < SHORTEST_STEP_M:
+            continue
+        share = (strides[lift_off:end, side] - cycle[lift_off:end, side]) / SWING_SHARE
+        eased = smoothstep(share)
+        feet[lift_off:end, side, :2] = position + (target - position) * eased[:, None]
+        feet[lift_off:end, side, 2] = (height + (floor_height - height) * eased
+                                       + FOOT_LIFT_M * min(1.0, step / FULL_LIFT_STEP_M) * np.sin(np.pi * share))
+        feet[end:, side] = (*target, floor_height)
+    return heel_roll(feet, swings, phase, strides - cycle, forward, foot)
+
+
+def heel_roll(feet, swings, phase, within, forward, foot=FOOT_M):
+    """(ankles (F, 2, 3), pitches (F, 2)): planted ankles (F, 2, 3) rolled onto the toes over the
+    last HEEL_OFF of each stance before a swing (``swings``: (lift-off, landing, side)), the heel
+    up HEEL_LIFT_M at lift-off and down again by mid-swing, the foot pitched about its toes
+    (``foot`` ahead of the ankle along ``forward`` (F, 2)) so they stay where they stood; ``phase``
+    (F,): strides walked (``gait_phase``), ``within`` (F, 2): each foot's share of its current stride. A flat foot keeps the legs from reaching
+    a walk's plants without lowering the hips (a captured ankle rises 15-20 cm at push-off)."""
+    heel = np.zeros(feet.shape[:2])
+    for lift_off, end, side in swings:
+        rate = max(phase[lift_off] - phase[max(lift_off - 1, 0)], 1e-9)  # strides per frame
+        rolling = max(1, int(round(HEEL_OFF * (1.0 - SWING_SHARE) / rate)))
+        start = max(0, lift_off - rolling)
+        heel[start:lift_off, side] = HEEL_LIFT_M * smoothstep((np.arange(start, lift_off) - start + 1) / rolling)
+        share = within[lift_off:end, side] / SWING_SHARE
+        heel[lift_off:end, side] = HEEL_LIFT_M * (1.0 - smoothstep(2.0 * share))
+    pitch = np.arcsin(np.clip(heel / foot, 0.0, 1.0))
+    out = feet.copy()
+    out[..., 2] += heel
+    out[..., :2] += forward[:, None] * (foot * (1.0 - np.cos(pitch)))[..., None]
+    return out, pitch
+
+
+def _split(start, end, cycle):
+    """The swing frames start..end (inclusive) split where the stride count ``cycle`` (F,) changes:
+    a swing that ends as the next begins (a sprint's cadence) is two swings."""
+    edges = [start] + [frame for frame in range(start + 1, end + 1) if cycle[frame] != cycle[frame - 1]] + [end + 1]
+    return [(a, b - 1) for a, b in zip(edges, edges[1:])]
+
+
+def stance(feet):
+    """Frames (F, 2) bool where planned ankles (F, 2, 3) stand still: moved neither into nor out of."""
+    moved = np.linalg.norm(np.diff(feet, axis=0), axis=-1) > 1e-6  # (F - 1, 2)
+    still = np.ones(feet.shape[:2], dtype=bool)
+    still[1:] &= ~moved
+    still[:-1] &= ~moved
+    return still
+
+
+def variant_gaits(count, rng):
+    """A ``Gait`` for each of ``count`` variants of a walk: strides and first lifts spread evenly
+    over STRIDE_SPREAD and DELAY_SPREAD, each in its own random order, every other variant leading
+    with the other foot, so the variants differ in step timing, not only in what the model adds
+    above the feet (5 variants of a 4 m walk in one plain gait: 0.06 m apart)."""
+    if count == 1:
+        return [Gait()]
+    strides, delays = (rng.permutation(np.linspace(*spread, count)) for spread in (STRIDE_SPREAD, DELAY_SPREAD))
+    return [Gait(float(stride), float(delay), bool(index % 2))
+            for index, (stride, delay) in enumerate(zip(strides, delays))]
+
+
+def toes_down(pitches, heels, foot=FOOT_M):
+    """Foot pitches (...) no steeper than ankles ``heels`` (...) over their standing height let
+    toes ``foot`` ahead of them reach down to: the cleanup's ease out of the start pose holds the
+    ankles lower than planned, and a foot pitched as planned put its toes 6 cm through the floor."""
+    return np.minimum(pitches, np.arcsin(np.clip(heels / foot, 0.0, 1.0)))

@@ -1,0 +1,72 @@
+"""Steps planned under a ground path of the hips (issue 17): what the model is given to walk on."""
+
+import numpy as np
+import pytest
+
+from model_runtime import footsteps, generation
+from model_runtime.data import dataset
+from model_runtime.skeleton import JOINT_INDEX
+
+FPS = 30.0
+
+
+@pytest.fixture
+def standing(all_clips):
+    """The first pose (17, 3) of a captured walk (CMU 02_01) facing +x, its hips over the origin,
+    the floor at z = 0, both ankles at the lower one's height."""
+    clip = next(clip for clip in all_clips if clip.file.endswith("02_01.bvh"))
+    pose = dataset.normalise(clip.positions[:1])[0].astype(np.float64)
+    across = pose[JOINT_INDEX["LHip"]] - pose[JOINT_INDEX["RHip"]]
+    yaw = np.arctan2(across[1], across[0]) - np.pi / 2  # left along +y: facing +x
+    turn = np.array([[np.cos(-yaw), -np.sin(-yaw), 0.0], [np.sin(-yaw), np.cos(-yaw), 0.0], [0.0, 0.0, 1.0]])
+    pose = pose @ turn.T
+    pose[:, :2] -= pose[JOINT_INDEX["Hip"], :2]
+    ankles = [JOINT_INDEX["RFoot"], JOINT_INDEX["LFoot"]]
+    pose[ankles, 2] = pose[ankles, 2].min()  # both feet flat on the floor
+    return pose
+
+
+def _straight(metres, frames):
+    """Hips (1 + frames, 2) along +x, eased from rest to rest as a ground path drawn without times is."""
+    share = generation.eased(np.linspace(0.0, 1.0, frames + 1), 0.5 * FPS / frames)
+    return np.column_stack([metres * share, np.zeros(frames + 1)])
+
+
+def test_feet_step_in_turn_stand_still_between_and_stop_beside_the_hips(standing):
+    hips = _straight(4.0, 120)
+    feet, pitch = footsteps.planned_feet(hips, standing, FPS)
+    planted = footsteps.stance(feet)
+    lifts = [int(np.sum(np.diff(planted[:, side].astype(int)) == -1)) for side in range(2)]
+    print(f"steps per foot {lifts}; stance shares {planted.mean(axis=0).round(2)}; "
+          f"highest ankle {feet[..., 2].max():.3f} m, steepest pitch {np.degrees(pitch.max()):.0f} deg")
+    assert all(3 <= count <= 4 for count in lifts)  # captured walks: 3-4 steps per foot in 4 m
+    toes = feet[..., 2] - feet[0, :, 2].min() - footsteps.FOOT_M * np.sin(pitch)  # over the floor
+    assert (toes < 1e-6).any(axis=1).all()  # never both feet in the air: one planted or rolling on its toes
+    for side in range(2):
+        still = planted[:, side]
+        assert np.allclose(np.diff(feet[:, side], axis=0)[still[1:] & still[:-1]], 0.0)
+    assert np.all(planted[-1]) and np.abs(feet[-1, :, 0] - hips[-1, 0]).max() < 0.25  # both down by the hips
+    assert np.abs(feet[..., 1]).max() < 0.15  # each to its side of a straight path, not across it
+    assert feet[..., 2].min() >= standing[[JOINT_INDEX["RFoot"], JOINT_INDEX["LFoot"]], 2].min() - 1e-9
+
+
+def test_the_heel_rolls_off_with_the_toes_on_the_floor(standing):
+    feet, pitch = footsteps.planned_feet(_straight(4.0, 120), standing, FPS)
+    heel = feet[..., 2] - feet[0, :, 2].min()
+    rolling = (pitch > 0.05) & (heel < 0.03 + footsteps.FOOT_M * np.sin(pitch))  # toes on the floor, heel up
+    toes = heel - footsteps.FOOT_M * np.sin(pitch)
+    print(f"frames rolling on the toes {rolling.sum()}, toes over the floor there {toes[rolling].max():.4f} m")
+    assert rolling.sum() >= 6  # one roll before each lift at least
+    assert np.abs(toes[rolling & (heel <= footsteps.HEEL_LIFT_M)]).max() < 1e-6
+
+
+def test_no_walk_no_steps_and_variants_walk_in_their_own_gaits(standing):
+    assert footsteps.planned_feet(np.zeros((60, 2)), standing, FPS) is None
+    gaits = footsteps.variant_gaits(5, np.random.default_rng(0))
+    assert len(set(gaits)) == 5 and {gait.other_foot_first for gait in gaits} == {False, True}
+    hips = _straight(4.0, 120)
+    plans = [footsteps.planned_feet(hips, standing, FPS, gait)[0] for gait in gaits]
+    apart = [np.linalg.norm(a - b, axis=-1).mean() for i, a in enumerate(plans) for b in plans[i + 1:]]
+    print(f"ankles of 5 gaits apart: {min(apart):.3f} to {max(apart):.3f} m, mean {np.mean(apart):.3f}")
+    assert min(apart) > 0.02 and np.mean(apart) > 0.1
+    assert footsteps.variant_gaits(1, np.random.default_rng(0)) == [footsteps.Gait()]
