@@ -7,7 +7,11 @@ that frame and back; ``generate`` chains windows: each window after the first
 starts ``overlap`` frames before the previous one ends, sees those frames as
 known poses (all joints), and the two are cross-faded over the overlap, so
 there is no seam. Every frame keeps the initial pose's proportions above
-the hips (``with_proportions``).
+the hips (``with_proportions``). A later window carries the legs and the hips'
+horizontal position only: its upper body and hip height start afresh from the
+initial pose's (``anchored``), so what one window bends or sinks the next does
+not continue (carried whole, a 10 s walk's torso folded to 0.4 of its length and
+its hips sank to 0.8 of their height).
 """
 
 from dataclasses import dataclass
@@ -16,7 +20,7 @@ import numpy as np
 
 from .data.clips import NATIVE_FPS
 from .masks import per_coordinate
-from .skeleton import JOINT_INDEX, JOINT_NAMES, PARENTS, UPPER_BODY
+from .skeleton import JOINT_INDEX, JOINT_NAMES, LOWER_BODY, PARENTS, UPPER_BODY, indices
 
 # Hip-knee-ankle length of the training subjects (metres, 201 clips: 0.796 to
 # 0.880, median 0.808): rigs whose legs fall outside are scaled to the median.
@@ -90,6 +94,28 @@ def _window(model, initial, trajectories, mask, count, rng, diversity, sampler, 
     return motion + shift[:, None, None], planted
 
 
+def anchored(poses, initial):
+    """Poses (B, 17, 3) with everything above the hips as in ``initial`` (17, 3), turned about Z with
+    each pose's pelvis, and the hips at the initial pose's height: a later window's first pose."""
+    out = poses.copy()
+    turn = _pelvis_heading(poses) - _pelvis_heading(initial)  # (B,)
+    cos, sin = np.cos(turn)[:, None], np.sin(turn)[:, None]
+    upper, root = indices(UPPER_BODY), JOINT_INDEX["Hip"]
+    offset = initial[upper] - initial[root]  # (U, 3)
+    out[:, upper, 0] = poses[:, root, None, 0] + cos * offset[:, 0] - sin * offset[:, 1]
+    out[:, upper, 1] = poses[:, root, None, 1] + sin * offset[:, 0] + cos * offset[:, 1]
+    out[:, upper, 2] = poses[:, root, None, 2] + offset[:, 2]
+    raised = indices(UPPER_BODY + ("Hip", "RHip", "LHip"))
+    out[:, raised, 2] += (initial[root, 2] - poses[:, root, 2])[:, None]
+    return out
+
+
+def _pelvis_heading(poses):
+    """Angles (...) about Z of poses' (..., 17, 3) right-to-left hip direction."""
+    across = poses[..., JOINT_INDEX["LHip"], :2] - poses[..., JOINT_INDEX["RHip"], :2]
+    return np.arctan2(across[..., 1], across[..., 0])
+
+
 def with_proportions(poses, reference):
     """Poses (..., 17, 3) with every segment (joint to parent) above the hips as long as in
     ``reference`` (17, 3), each in its own direction, from the hips out. Each window of a long shot
@@ -119,19 +145,22 @@ def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, samp
     called after each window (it may raise to stop the work).
     """
     window = model.frames
-    total = len(trajectories)
+    total = trajectories.shape[-3]
     mask = per_coordinate(mask)
     motion = np.zeros((count, 1 + total, 17, 3), np.float32)
     motion[:, 0] = initial
     planted = None
+    carry = np.zeros((17, 3), np.float32)  # what a later window carries: the legs, the hips' horizontal position
+    carry[indices(LOWER_BODY)] = 1.0
+    carry[JOINT_INDEX["Hip"], 2] = 0.0
     for start, frames, carried in windows(total, window, overlap):
         done = start + carried  # frames already generated
         given = np.zeros((count, window, 17, 3), np.float32)
         known = np.zeros((count, window, 17, 3), np.float32)
         given[:, :frames] = trajectories[..., start:start + frames, :, :]
         known[:, :frames] = mask[start:start + frames]
-        given[:, :carried] = motion[:, start + 1:done + 1]
-        known[:, :carried] = 1.0
+        given[:, :carried] = np.where(carry > 0, motion[:, start + 1:done + 1], given[:, :carried])
+        known[:, :carried] = np.maximum(known[:, :carried], carry)
         if start == 0:
             if trajectories.ndim == 4:
                 new, feet = (part[:, 0] for part in _window(model, np.repeat(initial[None], count, axis=0), given,
@@ -142,8 +171,8 @@ def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, samp
             planted = np.zeros((count, 1 + total, feet.shape[-1]), np.float32)
             planted[:, 0] = feet[:, 0]
         else:
-            new, feet = (part[:, 0] for part in _window(model, motion[:, start], given, known, 1, rng, diversity,
-                                                         None, continuation=True))
+            new, feet = (part[:, 0] for part in _window(model, anchored(motion[:, start], initial), given, known, 1,
+                                                         rng, diversity, None, continuation=True))
         fade = np.linspace(0.0, 1.0, carried + 2)[1:-1, None]
         motion[:, start + 1:done + 1] = motion[:, start + 1:done + 1] * (1.0 - fade[..., None]) \
             + new[:, :carried] * fade[..., None]

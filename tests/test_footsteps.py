@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from model_runtime import footsteps, generation
+from model_runtime import footsteps, generation, numpy_model, skeleton, weights
 from model_runtime.data import dataset
 from model_runtime.skeleton import JOINT_INDEX
 
@@ -70,3 +70,31 @@ def test_no_walk_no_steps_and_variants_walk_in_their_own_gaits(standing):
     print(f"ankles of 5 gaits apart: {min(apart):.3f} to {max(apart):.3f} m, mean {np.mean(apart):.3f}")
     assert min(apart) > 0.02 and np.mean(apart) > 0.1
     assert footsteps.variant_gaits(1, np.random.default_rng(0)) == [footsteps.Gait()]
+
+
+def test_the_model_walks_each_variants_own_steps_for_10_s_without_folding(standing):
+    """Each variant's planned feet given to the bundled model (numpy, as the add-on runs it) over
+    300 frames of chained windows: every frame generated, each body over its own steps, the torso
+    keeping its length and the hips their height to the end (later windows carry the legs and
+    start the upper body and the hip height afresh: ``generation.anchored``)."""
+    network, sampler = numpy_model.load_folder(weights.ASSETS)
+    frames, count = 300, 3
+    hips = _straight(10.0, frames)
+    plans = [footsteps.planned_feet(hips, standing, FPS, gait)[0]
+             for gait in footsteps.variant_gaits(count, np.random.default_rng(0))]
+    trajectories = np.zeros((count, frames, skeleton.NUM_JOINTS, 3), np.float32)
+    mask = np.zeros((frames, skeleton.NUM_JOINTS, 3), np.float32)
+    feet = [JOINT_INDEX["RFoot"], JOINT_INDEX["LFoot"]]
+    trajectories[:, :, JOINT_INDEX["Hip"], :2], mask[:, JOINT_INDEX["Hip"], :2] = hips[1:], 1.0
+    trajectories[:, :, feet], mask[:, feet] = np.stack(plans)[:, 1:], 1.0
+    motion, _ = generation.generate(network, standing.astype(np.float32), trajectories, mask, count,
+                                    np.random.default_rng(0), 1.0, sampler)
+    assert motion.shape == (count, 1 + frames, skeleton.NUM_JOINTS, 3)
+    own = np.linalg.norm(motion[:, :, feet] - np.stack(plans), axis=-1).mean(axis=(1, 2))
+    torso = np.linalg.norm(motion[:, -60:, JOINT_INDEX["Thorax"]] - motion[:, -60:, JOINT_INDEX["Hip"]], axis=-1)
+    standing_torso = np.linalg.norm(standing[JOINT_INDEX["Thorax"]] - standing[JOINT_INDEX["Hip"]])
+    height = motion[:, -60:, JOINT_INDEX["Hip"], 2] / standing[JOINT_INDEX["Hip"], 2]
+    print(f"feet from their own plans {own.round(3)} m; last 2 s: torso {torso.min() / standing_torso:.2f} of its "
+          f"length at the least, hips {height.min():.2f} of their height")
+    assert own.max() < 0.3
+    assert torso.min() > 0.9 * standing_torso and height.min() > 0.85
