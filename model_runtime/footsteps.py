@@ -32,13 +32,13 @@ FOOT_LIFT_M = 0.1  # the ankle's lift at mid-swing, heel off to toe clearance
 # not taken; each foot stands HALF_WIDTH_M (at least, at most) to its side of the hips' path.
 WALKING_M_S = 0.1
 SPEED_SMOOTHING_S = 0.25
-MIN_CADENCE = 0.6
+MIN_CADENCE = 0.9  # 0.6 left the trailing foot 0.7 m behind the setting-off hips
 START_DELAY = 0.15
 SHORTEST_STEP_M = 0.05
 HALF_WIDTH_M = (0.05, 0.10)
 RESTS = (0.45, 0.95)  # shares of a stride where both feet are down (the left foot swings from 0.5)
 FULL_LIFT_STEP_M = 0.4  # shorter steps lift the foot in proportion
-FARTHEST_LANDING = 0.45  # legs (hip to ankle) from the hips, horizontally, to a landing as it lands
+FARTHEST_LANDING = 0.4  # legs (hip to ankle) from the hips, horizontally, to a landing as it lands
 UNDER_HIPS = 0.45  # share of its stance at which a planted foot is under the hips
 HEEL_OFF, HEEL_LIFT_M = 0.5, 0.12  # the last share of a stance rolled onto the toes; the heel's rise by lift-off
 FOOT_M = 0.2  # ankle to toe tip over the ground, an adult's (a rig's own where it has toes)

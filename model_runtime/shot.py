@@ -41,11 +41,12 @@ MAX_BELOW_FEET_M = 0.2
 # Frames compared for the distance between variants.
 COMPARED_FRAMES = 300
 # A curve bound to the hips whose mean height over the floor is under this share of the hips'
-# standing height is a ground path: it gives the hips' horizontal position only (the model chooses
-# their height, the steps and the body), and without drawing times the walk along it speeds up from
-# rest and slows to rest over GROUND_EASE_S at either end.
+# standing height is a ground path: it gives the hips' horizontal position only (the feet step as
+# planned under it, the model chooses the hips' height and the body), and without drawing times the
+# walk along it speeds up from rest and slows to rest over GROUND_EASE_S at either end (over 0.5 s
+# the hips ran ahead of the first steps and the legs' reach dropped them to 0.8 of their height).
 GROUND_PATH_HEIGHT = 0.5
-GROUND_EASE_S = 0.5
+GROUND_EASE_S = 0.8
 # A foot curve drawn without times whose mean height over the floor is under this, at least
 # ``footsteps.Stepping.SHORTEST_PATH_M`` long, is a path of footsteps: the foot plants and swings
 # along it (``foot_stepping``).
