@@ -5,7 +5,7 @@ shot) it generates seven shots: idle from the rest pose, a hand reach, blocking
 keys (rest pose at frame 1, a crouch with both arms up at 45), 300 frames
 of a slow hand wave, and walks along paths on the floor bound to the hips
 (4 m gently curved over 120 frames, a quarter circle of radius 2.5 m over
-120, 10 m over 300; issue 17). Each is measured as Blender plays it (``frame_set`` on
+120, 10 m over 300, and a run: 10 m over 120; issue 17). Each is measured as Blender plays it (``frame_set`` on
 every frame) with the figures of ../shared/notes/quality-measures.md, beside
 real capture of ../shared/mocap imported with Blender's own BVH importer and
 measured the same way. Prints one table per rig and writes contact sheets

@@ -6,9 +6,10 @@ under a ground path of the hips: given only the hips' path, the model's feet
 glide along it at the hips' speed (ankles lifted 2-4 cm, planted ankles at
 0.8 m/s); given feet that step, it completes the walking body around them (hips
 at their standing height, ankles following the steps). Stride lengths and
-timing are those of captured walks: a stride (one foot's travel from plant to
-plant) of about STRIDE_M + STRIDE_PER_SPEED_S * speed, each foot in the air
-for SWING_SHARE of it, the feet half a stride apart.
+timing are those of captured walks and runs: a stride (one foot's travel from
+plant to plant) of about STRIDE_M + STRIDE_PER_SPEED_S * speed, each foot in the
+air for SWING_SHARE of it at a walk and RUN_SWING_SHARE at a run (both feet
+off the ground between steps), the feet half a stride apart.
 """
 
 from dataclasses import dataclass
@@ -25,6 +26,11 @@ J = JOINT_INDEX
 STRIDE_M, STRIDE_PER_SPEED_S = 0.6, 0.55
 SWING_SHARE = 0.4  # of each stride, the foot in the air (a walk: 40 %, with double support)
 FOOT_LIFT_M = 0.1  # the ankle's lift at mid-swing, heel off to toe clearance
+# Running: from WALK_TOP_M_S to RUN_FROM_M_S the gait turns from a walk into a run, each foot in the air
+# for RUN_SWING_SHARE of a stride (stance 35 %: a flight between steps), its ankle lifted RUN_LIFT_M.
+WALK_TOP_M_S, RUN_FROM_M_S = 2.0, 2.6
+RUN_SWING_SHARE = 0.65
+RUN_LIFT_M = 0.25
 
 # Planned feet: the hips walk while faster than WALKING_M_S (their speed smoothed over SPEED_SMOOTHING_S);
 # slower, the feet still step at MIN_CADENCE strides a second until both stand beside the hips. The
@@ -55,6 +61,11 @@ class Gait:
     stride: float = 1.0
     delay: float = START_DELAY
     other_foot_first: bool = False
+
+
+def swing_share(speed):
+    """Each foot's share (...) of a stride in the air at hip speeds (...) m/s: a walk's, a run's, or between."""
+    return np.interp(speed, (WALK_TOP_M_S, RUN_FROM_M_S), (SWING_SHARE, RUN_SWING_SHARE))
 
 
 def stride_length(speed):
@@ -140,15 +151,14 @@ def planned_feet(hips, initial, fps, gait=None, foot=FOOT_M):
     first = int(np.argmin((ankles[:, :2] - hips[0]) @ forward[0])) ^ int(gait.other_foot_first)
     widths = np.clip(np.abs((ankles[:, :2] - hips[0]) @ left[0]), *HALF_WIDTH_M) * np.array([-1.0, 1.0])
     strides = phase[:, None] - np.where(np.arange(2) == first, 0.0, 0.5)  # (F, 2): each foot's own strides
-    cycle = np.floor(strides)
-    swinging = (strides >= 0.0) & (strides - cycle < SWING_SHARE)
-    swings = sorted((start, end + 1, side) for side in range(2) for start, end in runs(swinging[:, side])
-                    for start, end in _split(start, end, cycle[:, side]))
+    swung = swing_share(speed)  # (F,)
+    lifted = np.interp(speed, (WALK_TOP_M_S, RUN_FROM_M_S), (FOOT_LIFT_M, RUN_LIFT_M))
+    swings, progress = _swings(strides, swung)
     feet = np.repeat(ankles[None], frames, axis=0)
     for lift_off, end, side in swings:
         landing = min(end, frames - 1)
         rate = max(phase[landing] - phase[landing - 1], 1e-9)  # strides per frame
-        middle = min(landing + int(round((1.0 - SWING_SHARE) * UNDER_HIPS / rate)), frames - 1)
+        middle = min(landing + int(round((1.0 - swung[landing]) * UNDER_HIPS / rate)), frames - 1)
         target = hips[middle] + widths[side] * left[middle]
         reach = np.linalg.norm(target - hips[landing])
         if reach > longest:
@@ -157,29 +167,30 @@ def planned_feet(hips, initial, fps, gait=None, foot=FOOT_M):
         step = np.linalg.norm(target - position)
         if step < SHORTEST_STEP_M:
             continue
-        share = (strides[lift_off:end, side] - cycle[lift_off:end, side]) / SWING_SHARE
+        share = progress[lift_off:end, side]
         eased = smoothstep(share)
         feet[lift_off:end, side, :2] = position + (target - position) * eased[:, None]
         feet[lift_off:end, side, 2] = (height + (floor_height - height) * eased
-                                       + FOOT_LIFT_M * min(1.0, step / FULL_LIFT_STEP_M) * np.sin(np.pi * share))
+                                       + lifted[lift_off] * min(1.0, step / FULL_LIFT_STEP_M) * np.sin(np.pi * share))
         feet[end:, side] = (*target, floor_height)
-    return heel_roll(feet, swings, phase, strides - cycle, forward, foot)
+    return heel_roll(feet, swings, phase, progress, 1.0 - swung, forward, foot)
 
 
-def heel_roll(feet, swings, phase, within, forward, foot=FOOT_M):
+def heel_roll(feet, swings, phase, within, stance, forward, foot=FOOT_M):
     """(ankles (F, 2, 3), pitches (F, 2)): planted ankles (F, 2, 3) rolled onto the toes over the
     last HEEL_OFF of each stance before a swing (``swings``: (lift-off, landing, side)), the heel
     up HEEL_LIFT_M at lift-off and down again by mid-swing, the foot pitched about its toes
     (``foot`` ahead of the ankle along ``forward`` (F, 2)) so they stay where they stood; ``phase``
-    (F,): strides walked (``gait_phase``), ``within`` (F, 2): each foot's share of its current stride. A flat foot keeps the legs from reaching
-    a walk's plants without lowering the hips (a captured ankle rises 15-20 cm at push-off)."""
+    (F,): strides walked (``gait_phase``), ``within`` (F, 2): the share of its swing each foot has
+    done (``_swings``), ``stance`` (F,): a stride's share on the ground. A flat foot keeps the legs from reaching a walk's
+    plants without lowering the hips (a captured ankle rises 15-20 cm at push-off)."""
     heel = np.zeros(feet.shape[:2])
     for lift_off, end, side in swings:
         rate = max(phase[lift_off] - phase[max(lift_off - 1, 0)], 1e-9)  # strides per frame
-        rolling = max(1, int(round(HEEL_OFF * (1.0 - SWING_SHARE) / rate)))
+        rolling = max(1, int(round(HEEL_OFF * stance[lift_off] / rate)))
         start = max(0, lift_off - rolling)
         heel[start:lift_off, side] = HEEL_LIFT_M * smoothstep((np.arange(start, lift_off) - start + 1) / rolling)
-        share = within[lift_off:end, side] / SWING_SHARE
+        share = within[lift_off:end, side]
         heel[lift_off:end, side] = HEEL_LIFT_M * (1.0 - smoothstep(2.0 * share))
     pitch = np.arcsin(np.clip(heel / foot, 0.0, 1.0))
     out = feet.copy()
@@ -188,11 +199,23 @@ def heel_roll(feet, swings, phase, within, forward, foot=FOOT_M):
     return out, pitch
 
 
-def _split(start, end, cycle):
-    """The swing frames start..end (inclusive) split where the stride count ``cycle`` (F,) changes:
-    a swing that ends as the next begins (a sprint's cadence) is two swings."""
-    edges = [start] + [frame for frame in range(start + 1, end + 1) if cycle[frame] != cycle[frame - 1]] + [end + 1]
-    return [(a, b - 1) for a, b in zip(edges, edges[1:])]
+def _swings(strides, swung):
+    """(swings, progress): each foot's swings (lift-off frame, landing frame, side), in time order,
+    from its strides (F, 2) (a swing starts with each stride and lasts the share ``swung`` (F,) of
+    it at lift-off, so a run slowing to a walk mid-swing does not cut the swing short), and the
+    share (F, 2) of its swing each foot has done (0 on the ground)."""
+    cycle = np.floor(strides)
+    progress = np.zeros(strides.shape)
+    swings = []
+    for side in range(2):
+        starts = np.flatnonzero((strides[:, side] >= 0.0) & (np.diff(cycle[:, side], prepend=-np.inf) != 0))
+        for lift_off in starts:
+            share = (strides[lift_off:, side] - cycle[lift_off, side]) / swung[lift_off]
+            end = lift_off + int(np.argmax(np.append(share >= 1.0, True)))
+            if end > lift_off:
+                swings.append((lift_off, end, side))
+                progress[lift_off:end, side] = share[:end - lift_off]
+    return sorted(swings), progress
 
 
 def stance(feet):

@@ -156,5 +156,10 @@ def long_walk(rig):
     return {"Hip": _ground_path(rig, 10.0, 45.0)}, None
 
 
+def run(rig):
+    """A ground path: 10 m on the floor, gently curved (15 degrees), to be covered in 4 s: a run."""
+    return {"Hip": _ground_path(rig, 10.0, 15.0)}, None
+
+
 SHOTS = (("idle", 150, idle), ("reach", 90, reach), ("keys", 60, blocking), ("wave", 300, wave))
-WALKS = (("walk", 120, walk), ("quarter turn", 120, quarter_turn), ("long walk", 300, long_walk))
+WALKS = (("walk", 120, walk), ("quarter turn", 120, quarter_turn), ("long walk", 300, long_walk), ("run", 120, run))

@@ -60,6 +60,20 @@ def test_the_heel_rolls_off_with_the_toes_on_the_floor(standing):
     assert np.abs(toes[rolling & (heel <= footsteps.HEEL_LIFT_M)]).max() < 1e-6
 
 
+def test_a_fast_path_is_run_with_flights_between_steps(standing):
+    """10 m in 4 s (cruising 3.1 m/s): a run, each foot in the air RUN_SWING_SHARE of a stride, so
+    both are up between steps; the same feet at 1.2 m/s never leave the ground together."""
+    def flight_share(metres):
+        feet, pitch = footsteps.planned_feet(_straight(metres, 120), standing, FPS)
+        toes = feet[..., 2] - feet[0, :, 2].min() - footsteps.FOOT_M * np.sin(pitch)
+        return float((toes > 0.01).all(axis=1).mean()), feet
+    running, feet = flight_share(10.0)
+    walking, _ = flight_share(4.0)
+    lift = feet[..., 2].max() - feet[0, :, 2].min()
+    print(f"both feet up: run {running:.2f}, walk {walking:.2f} of the frames; run ankle lift {lift:.2f} m")
+    assert 0.1 < running < 0.35 and walking == 0.0 and lift > 0.2
+
+
 def test_no_walk_no_steps_and_variants_walk_in_their_own_gaits(standing):
     assert footsteps.planned_feet(np.zeros((60, 2)), standing, FPS) is None
     gaits = footsteps.variant_gaits(5, np.random.default_rng(0))
