@@ -51,6 +51,12 @@ GROUND_EASE_S = 0.8
 # ``footsteps.Stepping.SHORTEST_PATH_M`` long, is a path of footsteps: the foot plants and swings
 # along it (``foot_stepping``).
 FOOT_PATH_HEIGHT_M = 0.15
+# Keys on the hips (a root bone keyed with location) without a curve of theirs are a walk's
+# waypoints when they keep the hips within WAYPOINT_HEIGHT_M of their start height and carry them
+# WAYPOINT_TRAVEL_M or more: the hips walk a smooth path through them (``waypoint_path``).
+WAYPOINT_HEIGHT_M = 0.1
+WAYPOINT_TRAVEL_M = 0.5
+WAYPOINTS_NAME = "keys on the hips"
 # Share of ``run``'s progress spent in the networks; the retarget takes the rest.
 INFERENCE_SHARE = 0.75
 
@@ -157,7 +163,11 @@ def model_input(request):
     trajectories = np.zeros((steps, NUM_JOINTS, 3), np.float32)
     mask = np.zeros((steps, NUM_JOINTS, 3), np.float32)
     keyed = {}
-    for frame, joints in request.keys.items():  # keys constrain their joints on their frames only
+    waypoints = walk_waypoints(request)
+    keys = request.keys if waypoints is None else {  # the hips' keys become their ground path
+        frame: {joint: position for joint, position in joints.items() if joint != "Hip"}
+        for frame, joints in request.keys.items()}
+    for frame, joints in keys.items():  # keys constrain their joints on their frames only
         index = int(frame - frames[0])
         keyed[index] = {joint: placement.to_model(position) for joint, position in joints.items()}
         model_time = index * generation.NATIVE_FPS / fps
@@ -171,6 +181,11 @@ def model_input(request):
         trajectories[:, J[joint]] = placement.to_model(path_samples(request, joint, steps, span)[1:])
         mask[:, J[joint]] = axes[joint]
         targets[joint] = path_samples(request, joint, len(frames) - 1, len(frames) - 1)
+    if waypoints is not None:
+        axes["Hip"] = np.array([True, True, False])
+        trajectories[:, J["Hip"]] = placement.to_model(waypoint_path(request, waypoints, steps, span)[1:])
+        mask[:, J["Hip"]] = axes["Hip"]
+        targets["Hip"] = waypoint_path(request, waypoints, len(frames) - 1, len(frames) - 1)
     initial = placement.to_model(request.start_joints)
     steps = planned_steps(request, initial, trajectories, axes, keyed, _foot_length(request, placement))
     if steps is not None:  # the model completes each variant's walking body around its planned steps
@@ -212,6 +227,45 @@ def path_samples(request, joint, count, span):
     return samples
 
 
+def walk_waypoints(request):
+    """(times (K,) s from the start, hips (K, 3) world) of the start and the keys on the hips where
+    they are a walk's waypoints (see WAYPOINT_HEIGHT_M), else None."""
+    if "Hip" in request.curves:
+        return None
+    keyed = sorted((frame, joints["Hip"]) for frame, joints in request.keys.items() if "Hip" in joints)
+    if not keyed:
+        return None
+    start = request.start_joints[J["Hip"]]
+    times = np.array([0.0] + [(frame - request.frames[0]) / request.fps for frame, _ in keyed])
+    hips = np.array([start] + [position for _, position in keyed], dtype=np.float64)
+    level = np.abs(hips[:, 2] - start[2]).max() * request.metres_per_unit <= WAYPOINT_HEIGHT_M
+    travel = np.linalg.norm(np.diff(hips[:, :2], axis=0), axis=-1).sum() * request.metres_per_unit
+    return (times, hips) if level and travel >= WAYPOINT_TRAVEL_M else None
+
+
+def waypoint_path(request, waypoints, count, span):
+    """The hips' position (1 + ``count``, 3) world on frames ``span`` of them to the shot's end,
+    through the waypoints ((times (K,), hips (K, 3)), ``walk_waypoints``) on a curve that passes
+    each at its time (Catmull-Rom tangents), from rest at the first and to rest at the last, and
+    stays at the last."""
+    times, hips = waypoints
+    now = generation.time_shares(count, span) * request.seconds
+    tangents = np.zeros_like(hips)
+    tangents[1:-1] = (hips[2:] - hips[:-2]) / np.maximum(times[2:] - times[:-2], 1e-9)[:, None]
+    segment = np.clip(np.searchsorted(times, now, side="right") - 1, 0, len(times) - 2)
+    begin, end = times[segment], times[segment + 1]
+    length = np.maximum(end - begin, 1e-9)[:, None]
+    u = np.clip((now - begin) / length[:, 0], 0.0, 1.0)[:, None]
+    h00, h10, h01, h11 = 2 * u ** 3 - 3 * u ** 2 + 1, u ** 3 - 2 * u ** 2 + u, -2 * u ** 3 + 3 * u ** 2, u ** 3 - u ** 2
+    return (h00 * hips[segment] + h10 * length * tangents[segment] + h01 * hips[segment + 1]
+            + h11 * length * tangents[segment + 1])
+
+
+def curve_name(request, joint):
+    """What the artist drew or keyed for a joint's target, to name it in messages."""
+    return request.curve_names.get(joint, WAYPOINTS_NAME)
+
+
 def foot_stepping(request, joint):
     """The ``footsteps.Stepping`` of a foot path drawn on the floor (mean height within
     FOOT_PATH_HEIGHT_M of it) long enough to walk, else None: a foot would glide along it at
@@ -248,7 +302,7 @@ def check_reach(request, given):
     seconds = request.seconds
     problems = []
     for joint, path in given.targets.items():
-        name = f"curve {request.curve_names[joint]!r} ({request.rig.bones[joint]})"
+        name = f"curve {curve_name(request, joint)!r} ({request.rig.bones[joint]})"
         axes = given.axes[joint]
         gap = np.linalg.norm((path[0] - request.start_joints[J[joint]])[axes]) * request.metres_per_unit
         if gap * to_body > MAX_START_GAP_M:

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 import blender_rigs
+from model_runtime import animation_quality as quality
 from model_runtime import shot
 from model_runtime.skeleton import JOINT_INDEX
 from trajevae_addon import api, pipeline
@@ -75,21 +76,31 @@ def test_feet_drawn_on_the_floor_without_timing_plant_and_swing_in_turn(scene):
     assert all(np.isclose(l[np.r_[planted[f], False]], 0.0).all() for f, l in lift.items())  # on the ground when planted
 
 
-def test_keys_on_the_root_are_waypoints_of_the_hips(scene, rigify):
-    """Rigify's root keyed at three frames (moved 2 m, then 4 m along the floor): the hips are held
-    where each key puts them on those frames, and free between (a sparse path)."""
+def test_keys_on_the_root_are_waypoints_of_a_walk(scene, rigify):
+    """Rigify's root keyed at three frames along the floor (2 m, then 4 m, the middle one 0.5 m to
+    the side): the hips walk a smooth path through the keys (their horizontal position on every
+    frame, the model choosing their height), on the planned steps, and pass each key on its frame
+    as played."""
     hips = blender_rigs.world_joints(rigify)[HIP]
+    _, toes = blender_rigs.played(rigify, [1])
     root = rigify.pose.bones["root"]
-    for frame, metres in ((1, 0.0), (61, 2.0), (121, 4.0)):
-        root.location = (0.0, 0.0, 0.0)
-        root.location[1] = metres  # the root bone's Y points along the floor, away from the rig's front
+    for frame, (side, along) in ((1, (0.0, 0.0)), (61, (0.5, 2.0)), (121, (0.0, 4.0))):
+        root.location = (side, along, 0.0)  # the root bone's Y points along the floor
         root.keyframe_insert("location", frame=frame)
     scene.frame_set(1)
     job = pipeline.prepare(rigify, 2, 0)
     assert sorted(job.request.keys) == [61, 121]
+    np.testing.assert_array_equal(job.given.axes["Hip"], [True, True, False])
+    assert job.given.mask[:, HIP, :2].all() and not job.given.mask[:, HIP, 2].any() and job.given.steps is not None
     for frame in (61, 121):
-        held = job.request.keys[frame]["Hip"]
-        moved = np.linalg.norm((held - hips)[:2])
-        print(f"frame {frame}: hips key {moved:.2f} m from the start")
-        assert abs(moved - 2.0 * (frame - 1) / 60) < 0.01 and abs(held[2] - hips[2]) < 0.01
-    assert job.given.mask[:, HIP].sum(axis=0)[0] == 2  # the model frames of 61 and 121 (30 fps: one each)
+        np.testing.assert_allclose(job.given.targets["Hip"][frame - 1, :2], job.request.keys[frame]["Hip"][:2], atol=1e-6)
+    floor = quality.floor_height(toes)
+    for action in api.generate_variants(rigify, 2, 0):
+        api.set_active_variant(rigify, action)
+        joints, toes = blender_rigs.played(rigify, range(1, 122))
+        passed = [float(np.linalg.norm((joints[frame - 1, HIP] - job.request.keys[frame]["Hip"])[:2])) for frame in (61, 121)]
+        steps = quality.steps(toes, floor)
+        print(f"hips from the keys {np.round(passed, 3)} m; steps {steps}, planted toes "
+              f"{quality.planted_toe_speed(toes, scene.render.fps / scene.render.fps_base, floor):.2f} m/s, hips {quality.hip_height_share(joints, floor):.2f}")
+        assert max(passed) < 0.01 and min(steps) >= 2 and quality.hip_height_share(joints, floor) > 0.8
+    assert np.linalg.norm(job.request.keys[121]["Hip"][:2] - hips[:2]) > 3.9

@@ -382,12 +382,12 @@ class Writer:
             if error * units > PLAYED_TOLERANCE_M:
                 bone = job.bones[joint]
                 cause = _blame(self.armature, bone) or "something in the rig or its parents"
-                report.warnings.append(f"{bone} misses its curve {job.request.curve_names[joint]!r} by {100 * error * units:.1f} "
+                report.warnings.append(f"{bone} misses its curve {shot.curve_name(job.request, joint)!r} by {100 * error * units:.1f} "
                                        f"cm as played: {cause} moves it away from its keys")
         for joint in job.result.targets:
             shortfall = np.max([s[joint] for s in job.result.shortfall], axis=0) * units
             if shortfall.max() > PLAYED_TOLERANCE_M:
-                report.warnings.append(f"curve {job.request.curve_names[joint]!r} is beyond the reach of {job.bones[joint]} on "
+                report.warnings.append(f"curve {shot.curve_name(job.request, joint)!r} is beyond the reach of {job.bones[joint]} on "
                                        f"{100 * np.mean(shortfall > PLAYED_TOLERANCE_M):.0f} % of frames, by up to "
                                        f"{shortfall.max():.2f} m")
         self.armature.trajevae.last_report = "\n".join(report.warnings)
