@@ -8,7 +8,8 @@ eased out of the rig's pose (``ease_out_of_start``), the body put back on the fl
 with its hips kept from sagging far below their start height (``hips_up``),
 carried against its planted feet's slide and kept within reach of its curves
 (``without_slide``), planted feet held still with their heading
-(``plant_feet``), eased onto the artist's keys (``ease_onto_keys``), and every
+(``plant_feet``; under a ground path, the feet take the planned steps of
+``footsteps``), eased onto the artist's keys (``ease_onto_keys``), and every
 curve and key met exactly (``pin``). Motions are (V, F, 17, 3).
 """
 
@@ -222,8 +223,9 @@ def without_slide(motion, fps, standing, pinned, initial, targets, predicted, st
 
 def _layer(frames, plants, inside):
     """An additive correction (F, ...) that is ``inside(start, end)`` (its values over the plant)
-    within each plant (start, end), a run of planted frames, and eases (smoothstep) from one run's last value to the next
-    run's first in between; 0 at the first frame, the last run's last value held after it."""
+    within each plant (start, end), a run of planted frames, and eases (smoothstep) from one
+    plant's last value to the next one's first in between; 0 at the first frame, the last plant's
+    last value held after it."""
     values = inside(0, 0)[:1] * 0.0
     layer = np.repeat(values, len(frames), axis=0)
     before_frame, before_value = 0, values[0]

@@ -2,10 +2,10 @@
 
 Two uses. ``Stepping`` times a foot path drawn on the floor without drawing
 times (the foot plants and swings along it). ``planned_feet`` plans both feet
-under a ground path of the hips: given only the hips' path, the model's feet
-glide along it at the hips' speed (ankles lifted 2-4 cm, planted ankles at
-0.8 m/s); given feet that step, it completes the walking body around them (hips
-at their standing height, ankles following the steps). Stride lengths and
+under a ground path of the hips, rolling heel to toe: given only the hips'
+path, the model's feet glide along it at the hips' speed (ankles lifted 2-4 cm,
+planted ankles at 0.8 m/s); given feet that step, it completes the walking or
+running body around them. Stride lengths and
 timing are those of captured walks and runs: a stride (one foot's travel from
 plant to plant) of about STRIDE_M + STRIDE_PER_SPEED_S * speed, each foot in the
 air for SWING_SHARE of it at a walk and RUN_SWING_SHARE at a run (both feet
@@ -95,7 +95,7 @@ class Stepping:
     def __call__(self, progress):
         """Share of the way covered at ``progress`` in [0, 1] of the time."""
         whole, swing = self._swing(progress)
-        return np.clip((whole + swing * swing * (3.0 - 2.0 * swing)) / self.strides, 0.0, 1.0)
+        return np.clip((whole + smoothstep(swing)) / self.strides, 0.0, 1.0)
 
     def lift(self, progress):
         """The foot's lift above its path (m) at ``progress``: a half sine over each swing."""
@@ -182,8 +182,9 @@ def heel_roll(feet, swings, phase, within, stance, forward, foot=FOOT_M):
     up HEEL_LIFT_M at lift-off and down again by mid-swing, the foot pitched about its toes
     (``foot`` ahead of the ankle along ``forward`` (F, 2)) so they stay where they stood; ``phase``
     (F,): strides walked (``gait_phase``), ``within`` (F, 2): the share of its swing each foot has
-    done (``_swings``), ``stance`` (F,): a stride's share on the ground. A flat foot keeps the legs from reaching a walk's
-    plants without lowering the hips (a captured ankle rises 15-20 cm at push-off)."""
+    done (``_swings``), ``stance`` (F,): a stride's share on the ground. A flat foot keeps the
+    legs from reaching a walk's plants without lowering the hips (a captured ankle rises 15-20 cm
+    at push-off)."""
     heel = np.zeros(feet.shape[:2])
     for lift_off, end, side in swings:
         rate = max(phase[lift_off] - phase[max(lift_off - 1, 0)], 1e-9)  # strides per frame
@@ -231,7 +232,8 @@ def variant_gaits(count, rng):
     """A ``Gait`` for each of ``count`` variants of a walk: strides and first lifts spread evenly
     over STRIDE_SPREAD and DELAY_SPREAD, each in its own random order, every other variant leading
     with the other foot, so the variants differ in step timing, not only in what the model adds
-    above the feet (5 variants of a 4 m walk in one plain gait: 0.06 m apart)."""
+    above the feet (5 variants of a 4 m walk as the model draws them: 0.06 m apart in their own
+    gaits, 0.03 m in one)."""
     if count == 1:
         return [Gait()]
     strides, delays = (rng.permutation(np.linspace(*spread, count)) for spread in (STRIDE_SPREAD, DELAY_SPREAD))

@@ -5,8 +5,8 @@ window frame: metres, Z up, floor at z = 0, initial root at the ground-plane
 origin, adult proportions. ``Placement`` maps a scene's units and floor into
 that frame and back; ``generate`` chains windows: each window after the first
 starts ``overlap`` frames before the previous one ends, sees those frames as
-known poses (all joints), and the two are cross-faded over the overlap, so
-there is no seam. Every frame keeps the initial pose's proportions above
+known (see below), and the two are cross-faded over the overlap, so there is
+no seam. Every frame keeps the initial pose's proportions above
 the hips (``with_proportions``). A later window carries the legs and the hips'
 horizontal position only: its upper body and hip height start afresh from the
 initial pose's (``anchored``), so what one window bends or sinks the next does
@@ -141,8 +141,8 @@ def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, samp
     initial (17, 3); trajectories (T, 17, 3), or each motion's (count, T, 17, 3), and mask
     (T, 17, 3) or (T, 17) of the coordinates given on each frame after the initial one. The first
     window draws ``count`` latents (with the diverse sampler when given; one per motion for
-    trajectories of their own); later windows continue each motion with one prior sample. ``progress(fraction)`` is
-    called after each window (it may raise to stop the work).
+    trajectories of their own); later windows continue each motion with one prior sample.
+    ``progress(fraction)`` is called after each window (it may raise to stop the work).
     """
     window = model.frames
     total = trajectories.shape[-3]
