@@ -274,6 +274,17 @@ def _steps_when_left_behind(planted, ankles, hips, legs, fps):
     return planted, ahead
 
 
+def _bearing(planted, heights, free):
+    """Planted frames (F, 2), in place: where neither foot is planted but the lower free one is within
+    MODEL_CONTACT_HEIGHT_M of the floor (``heights`` (F, 2) over it, ``free`` (F, 2)), that one is,
+    as one foot bears the body short of a jump (a wave's late step left the other foot hovering
+    3.5 cm up for 7 frames, both feet off the floor)."""
+    heights = np.where(free, heights, np.inf)
+    lower = np.argmin(heights, axis=1)
+    rows = np.flatnonzero(~planted.any(axis=1) & (heights[np.arange(len(heights)), lower] < MODEL_CONTACT_HEIGHT_M))
+    planted[rows, lower[rows]] = True
+
+
 def _lift(frames, plants, height):
     """A foot's added height (F,): an arc STEP_CLEARANCE_M high over each step between plants where
     the foot (its own ``height`` (F,) over where it stands) does not lift by STEP_LIFT_M."""
@@ -305,6 +316,8 @@ def plant_feet(motion, fps, standing, pinned, initial, predicted, stance=None):
         if stance is None:
             contacts[variant], ahead = _steps_when_left_behind(contacts[variant], motion[variant][:, [J[f] for f in FEET]],
                                                                hips, legs, fps)
+            _bearing(contacts[variant], motion[variant][:, [J[f] for f in FEET], 2] - standing,
+                     pinned[:, [J[f] for f in FEET]] == 0)
         for side, foot in enumerate(FEET):
             ankle, turn = motion[variant, :, J[foot]], pelvis[variant]
             plants = runs(contacts[variant, :, side])

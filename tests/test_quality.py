@@ -204,6 +204,20 @@ def test_long_shots_are_windows_that_overlap_and_a_step_at_a_join_shows_as_a_sea
     assert animation_quality.seam(stepped, FPS, joins) > 3.0
 
 
+def test_a_foot_hovering_while_the_other_steps_bears_the_body():
+    """The right foot steps (lifted 10 cm) while the left hovers 6 cm up, not predicted planted: the
+    lower of the two bears the body on the floor, so both are never up at once (short of a jump)."""
+    motion, initial = _still(60), mannequin_module.REST_JOINTS.astype(np.float64)
+    right, left = JOINT_INDEX["RFoot"], JOINT_INDEX["LFoot"]
+    standing, pinned = initial[right, 2], np.zeros((60, 17))
+    motion[0, 20:40, right, 2] += 0.1 * np.sin(np.linspace(0.0, np.pi, 20))
+    motion[0, :, left, 2] += 0.06
+    out, contacts, _ = cleanup.plant_feet(motion, FPS, standing, pinned, initial, np.zeros((1, 60, 2)))
+    lower = out[0][:, [right, left], 2].min(axis=1) - standing
+    print(f"lowest foot up to {100 * lower.max():.2f} cm; left planted on {contacts[0, :, 1].mean():.0%} of frames")
+    assert contacts[0].any(axis=1).all() and lower.max() < 0.005
+
+
 def test_feet_left_behind_step_after_the_body_through_a_long_shot():
     frames, initial = 3000, mannequin_module.REST_JOINTS.astype(np.float64)
     motion = _still(frames)
