@@ -46,7 +46,9 @@ RESTS = (0.45, 0.95)  # shares of a stride where both feet are down (the left fo
 FULL_LIFT_STEP_M = 0.4  # shorter steps lift the foot in proportion
 FARTHEST_LANDING = 0.4  # legs (hip to ankle) from the hips, horizontally, to a landing as it lands
 UNDER_HIPS = 0.45  # share of its stance at which a planted foot is under the hips
-HEEL_OFF, HEEL_LIFT_M = 0.5, 0.12  # the last share of a stance rolled onto the toes; the heel's rise by lift-off
+# The last HEEL_OFF of a stance rolls onto the toes, the foot pitched HEEL_PITCH_DEG by lift-off (an adult's
+# 0.2 m foot: its heel 12 cm up; as a height, a Rigify foot, its toes the ball of the foot, stood on end).
+HEEL_OFF, HEEL_PITCH_DEG = 0.5, 37.0
 FOOT_M = 0.2  # ankle to toe tip over the ground, an adult's (a rig's own where it has toes)
 STRIDE_SPREAD = (0.9, 1.1)  # stride scales of a walk's variants
 DELAY_SPREAD = (0.05, 0.25)  # their first lifts, in strides after the hips set off
@@ -179,20 +181,21 @@ def planned_feet(hips, initial, fps, gait=None, foot=FOOT_M):
 def heel_roll(feet, swings, phase, within, stance, forward, foot=FOOT_M):
     """(ankles (F, 2, 3), pitches (F, 2)): planted ankles (F, 2, 3) rolled onto the toes over the
     last HEEL_OFF of each stance before a swing (``swings``: (lift-off, landing, side)), the heel
-    up HEEL_LIFT_M at lift-off and down again by mid-swing, the foot pitched about its toes
+    up by HEEL_PITCH_DEG at lift-off and down again by mid-swing, the foot pitched about its toes
     (``foot`` ahead of the ankle along ``forward`` (F, 2)) so they stay where they stood; ``phase``
     (F,): strides walked (``gait_phase``), ``within`` (F, 2): the share of its swing each foot has
     done (``_swings``), ``stance`` (F,): a stride's share on the ground. A flat foot keeps the
     legs from reaching a walk's plants without lowering the hips (a captured ankle rises 15-20 cm
     at push-off)."""
     heel = np.zeros(feet.shape[:2])
+    lift = foot * np.sin(np.radians(HEEL_PITCH_DEG))
     for lift_off, end, side in swings:
         rate = max(phase[lift_off] - phase[max(lift_off - 1, 0)], 1e-9)  # strides per frame
         rolling = max(1, int(round(HEEL_OFF * stance[lift_off] / rate)))
         start = max(0, lift_off - rolling)
-        heel[start:lift_off, side] = HEEL_LIFT_M * smoothstep((np.arange(start, lift_off) - start + 1) / rolling)
+        heel[start:lift_off, side] = lift * smoothstep((np.arange(start, lift_off) - start + 1) / rolling)
         share = within[lift_off:end, side]
-        heel[lift_off:end, side] = HEEL_LIFT_M * (1.0 - smoothstep(2.0 * share))
+        heel[lift_off:end, side] = lift * (1.0 - smoothstep(2.0 * share))
     pitch = np.arcsin(np.clip(heel / foot, 0.0, 1.0))
     out = feet.copy()
     out[..., 2] += heel

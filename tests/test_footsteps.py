@@ -57,7 +57,8 @@ def test_the_heel_rolls_off_with_the_toes_on_the_floor(standing):
     toes = heel - footsteps.FOOT_M * np.sin(pitch)
     print(f"frames rolling on the toes {rolling.sum()}, toes over the floor there {toes[rolling].max():.4f} m")
     assert rolling.sum() >= 6  # one roll before each lift at least
-    assert np.abs(toes[rolling & (heel <= footsteps.HEEL_LIFT_M)]).max() < 1e-6
+    lift = footsteps.FOOT_M * np.sin(np.radians(footsteps.HEEL_PITCH_DEG))
+    assert np.abs(toes[rolling & (heel <= lift + 1e-9)]).max() < 1e-6 and pitch.max() <= np.radians(footsteps.HEEL_PITCH_DEG) + 1e-9
 
 
 def test_a_fast_path_is_run_with_flights_between_steps(standing):
