@@ -18,10 +18,9 @@ import numpy as np
 from . import footsteps
 from .filters import runs, smooth, smoothstep, window_max, window_min
 from .retarget import steady_across
-from .skeleton import JOINT_INDEX, LIMBS, limb_length
+from .skeleton import FEET, JOINT_INDEX, LIMBS, UPPER_BODY, indices, limb_length
 
 J = JOINT_INDEX
-FEET = ("RFoot", "LFoot")
 # The ground under the body: the lower ankle's height opened (lowest, then highest of the lowest)
 # over this many seconds either side, so flights shorter than twice this (jumps) keep their height
 # while slow drift up or down is removed.
@@ -74,14 +73,13 @@ LEAN_SMOOTHING_S = 0.25
 # STAND_SHARE of their length (chained windows sank a walk's hips to 0.6 of standing in 10 s).
 HIPS_FREE_SHARE = 0.85
 HIPS_KEPT = 0.3
-ABOVE_HIPS = ("Spine", "Thorax", "Neck", "Head", "LShoulder", "LElbow", "LWrist", "RShoulder", "RElbow", "RWrist")
 
 
 def on_floor(motion, fps, standing):
     """The body moved up or down, smoothly, so the lower ankle stands at ``standing`` (its height
     at the start) wherever the feet touch the ground: no sinking below the floor, no floating
     away over a long shot, flights shorter than 2 FLOOR_WINDOW_S kept."""
-    lower = motion[..., [J[foot] for foot in FEET], 2].min(-1) - standing  # (V, F)
+    lower = motion[..., indices(FEET), 2].min(-1) - standing  # (V, F)
     half = max(1, int(round(FLOOR_WINDOW_S * fps)))
     opened = window_max(window_min(lower, half), half)  # follows slow drift, drops narrower flights
     ground = _eased_in(np.minimum(smooth(opened, half / 3.0), lower), fps)
@@ -196,7 +194,7 @@ def without_slide(motion, fps, standing, pinned, initial, targets, predicted, st
     the feet off the floor. ``predicted`` (V, F, 2): the model's planted feet in [0, 1]; ``stance``
     (V, F, 2) bool: the feet's planned plants, which replace those found in the motion."""
     planted = _contact_flags(motion, fps, standing, pinned, predicted) if stance is None else stance  # (V, F, 2)
-    velocity = np.diff(motion[..., [J[foot] for foot in FEET], :2], axis=1)  # (V, F - 1, 2, 2)
+    velocity = np.diff(motion[..., indices(FEET), :2], axis=1)  # (V, F - 1, 2, 2)
     both = planted[:, 1:] & planted[:, :-1]
     slide = (velocity * both[..., None]).sum(-2) / np.maximum(both.sum(-1), 1)[..., None]  # (V, F - 1, 2)
     slide *= (1.0 - pinned[1:, J["Hip"]])[None, :, None]
@@ -212,12 +210,12 @@ def without_slide(motion, fps, standing, pinned, initial, targets, predicted, st
         back += gap * np.clip(1.0 - share * limb_length(initial, limb) / np.maximum(distance, 1e-9), 0.0,
                               None)[..., None]
     legs = min(limb_length(initial, leg) for leg in LIMBS[:2])
-    room = motion[..., [J[foot] for foot in FEET], 2].min(-1) + STAND_SHARE * legs - motion[..., J["Hip"], 2]
+    room = motion[..., indices(FEET), 2].min(-1) + STAND_SHARE * legs - motion[..., J["Hip"], 2]
     back[..., 2] = np.minimum(back[..., 2], np.maximum(room, 0.0))  # (V, F): how far the hips can still rise
     back = np.swapaxes(smooth(np.swapaxes(back, 1, 2), REACH_EASE_S * fps), 1, 2)
     move = _eased_in(shift + back, fps)
     out = motion + move[:, :, None]
-    out[:, :, [J[foot] for foot in FEET], 2] -= move[:, :, None, 2]  # the feet stay on the floor
+    out[:, :, indices(FEET), 2] -= move[:, :, None, 2]  # the feet stay on the floor
     return out
 
 
@@ -310,14 +308,14 @@ def plant_feet(motion, fps, standing, pinned, initial, predicted, stance=None):
     contacts = _contact_flags(motion, fps, standing, pinned, predicted) if stance is None else stance.copy()
     frames = np.arange(motion.shape[1])
     legs = [limb_length(initial, leg) for leg in LIMBS[:2]]
+    feet, free = indices(FEET), pinned[:, indices(FEET)] == 0
     for variant in range(len(motion)):
         hips = motion[variant][:, [J[leg[0]] for leg in LIMBS[:2]]]
         ahead = np.zeros(contacts.shape[1:] + (2,))
         if stance is None:
-            contacts[variant], ahead = _steps_when_left_behind(contacts[variant], motion[variant][:, [J[f] for f in FEET]],
-                                                               hips, legs, fps)
-            _bearing(contacts[variant], motion[variant][:, [J[f] for f in FEET], 2] - standing,
-                     pinned[:, [J[f] for f in FEET]] == 0)
+            contacts[variant], ahead = _steps_when_left_behind(contacts[variant], motion[variant][:, feet], hips, legs,
+                                                               fps)
+            _bearing(contacts[variant], motion[variant][:, feet, 2] - standing, free)
         for side, foot in enumerate(FEET):
             ankle, turn = motion[variant, :, J[foot]], pelvis[variant]
             plants = runs(contacts[variant, :, side])
@@ -374,7 +372,7 @@ def upright(motion, initial, fps):
     axis = np.cross(steady, [0.0, 0.0, 1.0])  # horizontal: turning about it raises the torso
     axis /= np.maximum(np.linalg.norm(axis, axis=-1, keepdims=True), 1e-9)
     out = motion.copy()
-    above = [J[name] for name in ABOVE_HIPS]
+    above = indices(UPPER_BODY)
     arm = motion[:, :, above] - motion[:, :, J["Hip"]][:, :, None]  # (V, F, A, 3)
     k, cos, sin = axis[:, :, None], np.cos(turn)[..., None, None], np.sin(turn)[..., None, None]
     turned = arm * cos + np.cross(k, arm) * sin + k * (arm * k).sum(-1, keepdims=True) * (1.0 - cos)
@@ -389,7 +387,7 @@ def hips_up(motion, initial, fps, standing):
     height = smooth(motion[..., J["Hip"], 2], LEAN_SMOOTHING_S * fps) - standing  # (V, F)
     lift = (1.0 - HIPS_KEPT) * np.clip(HIPS_FREE_SHARE * (initial[J["Hip"], 2] - standing) - height, 0.0, None)
     legs = min(limb_length(initial, leg) for leg in LIMBS[:2])
-    ankles = motion[..., [J[foot] for foot in FEET], :]
+    ankles = motion[..., indices(FEET), :]
     reach = np.sqrt(np.maximum((STAND_SHARE * legs) ** 2 - np.sum(  # the hips' highest over the farther ankle
         (ankles[..., :2] - motion[..., None, J["Hip"], :2]) ** 2, axis=-1), 0.0)) + ankles[..., 2]
     lift = np.minimum(lift, np.maximum(reach.min(-1) - motion[..., J["Hip"], 2], 0.0))
@@ -397,7 +395,7 @@ def hips_up(motion, initial, fps, standing):
         return motion
     out = motion.copy()
     out[..., 2] += lift[..., None]
-    out[..., [J[foot] for foot in FEET], 2] -= lift[..., None]
+    out[..., indices(FEET), 2] -= lift[..., None]
     out[..., [J["RKnee"], J["LKnee"]], 2] -= 0.5 * lift[..., None]
     return out
 
@@ -455,7 +453,7 @@ def tidy(motion, fps, initial, targets, axes, keyed, predicted, steps=None):
     stance = None
     if steps is not None:
         motion = motion.copy()
-        motion[:, :, [J[foot] for foot in FEET]] = steps
+        motion[:, :, indices(FEET)] = steps
         stance = np.stack([footsteps.stance(variant) for variant in steps])
     motion = upright(motion, initial, fps)
     motion = hips_up(on_floor(ease_out_of_start(motion, fps), fps, standing), initial, fps, standing)

@@ -19,8 +19,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .data.clips import NATIVE_FPS
+from .augment import rotate_about_z
 from .masks import per_coordinate
-from .skeleton import JOINT_INDEX, JOINT_NAMES, LOWER_BODY, PARENTS, UPPER_BODY, indices
+from .skeleton import JOINT_INDEX, JOINT_NAMES, LOWER_BODY, PARENTS, UPPER_BODY, facing, indices
 
 # Hip-knee-ankle length of the training subjects (metres, 201 clips: 0.796 to
 # 0.880, median 0.808): rigs whose legs fall outside are scaled to the median.
@@ -98,22 +99,18 @@ def anchored(poses, initial):
     """Poses (B, 17, 3) with everything above the hips as in ``initial`` (17, 3), turned about Z with
     each pose's pelvis, and the hips at the initial pose's height: a later window's first pose."""
     out = poses.copy()
-    turn = _pelvis_heading(poses) - _pelvis_heading(initial)  # (B,)
-    cos, sin = np.cos(turn)[:, None], np.sin(turn)[:, None]
     upper, root = indices(UPPER_BODY), JOINT_INDEX["Hip"]
-    offset = initial[upper] - initial[root]  # (U, 3)
-    out[:, upper, 0] = poses[:, root, None, 0] + cos * offset[:, 0] - sin * offset[:, 1]
-    out[:, upper, 1] = poses[:, root, None, 1] + sin * offset[:, 0] + cos * offset[:, 1]
-    out[:, upper, 2] = poses[:, root, None, 2] + offset[:, 2]
+    offsets = np.broadcast_to(initial[upper] - initial[root], (len(poses), len(upper), 3))  # (B, U, 3)
+    out[:, upper] = poses[:, root, None] + rotate_about_z(offsets, _facing_angle(poses) - _facing_angle(initial))
     raised = indices(UPPER_BODY + ("Hip", "RHip", "LHip"))
     out[:, raised, 2] += (initial[root, 2] - poses[:, root, 2])[:, None]
     return out
 
 
-def _pelvis_heading(poses):
-    """Angles (...) about Z of poses' (..., 17, 3) right-to-left hip direction."""
-    across = poses[..., JOINT_INDEX["LHip"], :2] - poses[..., JOINT_INDEX["RHip"], :2]
-    return np.arctan2(across[..., 1], across[..., 0])
+def _facing_angle(poses):
+    """Angles (...) about Z of poses' (..., 17, 3) facing (``skeleton.facing``)."""
+    forward = facing(poses)
+    return np.arctan2(forward[..., 1], forward[..., 0])
 
 
 def with_proportions(poses, reference):

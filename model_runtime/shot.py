@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import cleanup, footsteps, generation, retarget
-from .skeleton import FEET, JOINT_INDEX, NUM_JOINTS
+from .skeleton import FEET, JOINT_INDEX, NUM_JOINTS, indices
 
 J = JOINT_INDEX
 
@@ -187,11 +187,11 @@ def model_input(request):
         mask[:, J["Hip"]] = axes["Hip"]
         targets["Hip"] = waypoint_path(request, waypoints, len(frames) - 1, len(frames) - 1)
     initial = placement.to_model(request.start_joints)
-    steps = planned_steps(request, initial, trajectories, axes, keyed, _foot_length(request, placement))
-    if steps is not None:  # the model completes each variant's walking body around its planned steps
+    planned = planned_steps(request, initial, trajectories, axes, keyed, _foot_length(request, placement))
+    if planned is not None:  # the model completes each variant's walking body around its planned steps
         trajectories = np.repeat(trajectories[None], request.count, axis=0)
-        trajectories[:, :, [J[foot] for foot in FEET]], mask[:, [J[foot] for foot in FEET]] = steps[0][:, 1:], 1.0
-    return ModelInput(placement, initial, trajectories, mask, targets, axes, keyed, steps)
+        trajectories[:, :, indices(FEET)], mask[:, indices(FEET)] = planned[0][:, 1:], 1.0
+    return ModelInput(placement, initial, trajectories, mask, targets, axes, keyed, planned)
 
 
 def planned_steps(request, initial, trajectories, axes, keyed, foot):
@@ -353,7 +353,7 @@ def run(request, model, sampler=None, progress=None, given=None):
     scene_rate, contacts, turns = cleanup.tidy(scene_rate, request.fps, given.initial, targets, given.axes,
                                                given.keyed, planted, steps)
     if pitches is not None:
-        ankles = scene_rate[:, :, [J[foot] for foot in FEET], 2] - min(given.initial[J[foot], 2] for foot in FEET)
+        ankles = scene_rate[:, :, indices(FEET), 2] - min(given.initial[J[foot], 2] for foot in FEET)
         pitches = footsteps.toes_down(pitches, ankles, _foot_length(request, given.placement))
     report(INFERENCE_SHARE)  # a chance to stop before the retarget
     world = given.placement.to_world(scene_rate)
@@ -388,7 +388,7 @@ def _foot_length(request, placement):
     or ``footsteps.FOOT_M`` without its toes."""
     if request.start_toes is None:
         return footsteps.FOOT_M
-    ankles = request.start_joints[[J[foot] for foot in FEET]]
+    ankles = request.start_joints[indices(FEET)]
     return float(np.linalg.norm((request.start_toes - ankles)[:, :2], axis=-1).mean() * placement.scale)
 
 

@@ -239,7 +239,7 @@ def test_a_torso_leaning_further_and_further_is_drawn_back_toward_the_start_pose
     frames, initial = 300, mannequin_module.REST_JOINTS.astype(np.float64)
     motion = _still(frames)
     hip = initial[JOINT_INDEX["Hip"]]
-    above = [JOINT_INDEX[name] for name in cleanup.ABOVE_HIPS]
+    above = skeleton.indices(skeleton.UPPER_BODY)
     for frame, degrees in enumerate(np.linspace(0.0, 60.0, frames)):  # a forward lean growing to 60 degrees
         angle = np.radians(degrees)
         turn = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(angle), -np.sin(angle)], [0.0, np.sin(angle), np.cos(angle)]])
