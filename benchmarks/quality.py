@@ -49,7 +49,7 @@ NOTES = """
 planted: mean horizontal speed of toes within 2 cm of the floor (the lower toe at the start frame). float, sink:
 the lower toe's highest height above and deepest depth below it. air: frames with both toes over 3 cm up.
 acc: worst joint acceleration; spike: worst frame over median frame. steps: per foot, right/left. lean: hips to
-neck base from vertical. knee-in: knee pointing inward of forward. off-limit: frames outside the joint-angle
+neck base from vertical. swing: the wrists' swing front to back (5th-95th percentile from the shoulder). knee-in: knee pointing inward of forward. off-limit: frames outside the joint-angle
 limits fitted on the training data. spread: mean pairwise joint distance of the variants. curve: the bound joint
 to where its curve puts it. path: the hips' farthest from a ground path; facing: worst angle of the body's facing
 from the path's tangent; hip h: the hips' lowest height over their standing height; seam: the worst acceleration
@@ -131,6 +131,7 @@ def figures(shot, limits, error=None):
             "acc m/s2": f"{max(worst):.0f}", "spike x": f"{max(spike):.0f}",
             "steps R/L": "/".join(f"{n:.1f}".rstrip("0").rstrip(".") for n in np.mean(steps, axis=0)),
             "lean deg": f"{quality.lean_degrees(shot.joints.reshape(-1, 17, 3)).max():.0f}",
+            "swing m": f"{np.mean([quality.arm_swing(joints) for joints in shot.joints]):.2f}",
             "knee-in deg": f"{quality.knee_inward_degrees(shot.joints.reshape(-1, 17, 3)).max():.0f}",
             "off-limit %": f"{100 * realism.share_outside_limits(shot.joints, limits):.0f}",
             "spread m": f"{quality.spread(shot.joints):.2f}" if len(shot.joints) > 1 else "-",

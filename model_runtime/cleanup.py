@@ -9,7 +9,8 @@ with its hips kept from sagging far below their start height (``hips_up``),
 carried against its planted feet's slide and kept within reach of its curves
 (``without_slide``), planted feet held still with their heading
 (``plant_feet``; under a ground path, the feet take the planned steps of
-``footsteps``), eased onto the artist's keys (``ease_onto_keys``), and every
+``footsteps``, the body leaning into the walk and the arms swinging against the legs:
+``leaning_into_the_walk``, ``swinging_arms``), eased onto the artist's keys (``ease_onto_keys``), and every
 curve and key met exactly (``pin``). Motions are (V, F, 17, 3).
 """
 
@@ -18,7 +19,8 @@ import numpy as np
 from . import footsteps
 from .filters import runs, smooth, smoothstep, window_max, window_min
 from .retarget import steady_across
-from .skeleton import FEET, JOINT_INDEX, LIMBS, UPPER_BODY, indices, limb_length
+from .rotations import turned
+from .skeleton import FEET, JOINT_INDEX, LIMBS, UPPER_BODY, facing, indices, limb_length
 
 J = JOINT_INDEX
 # The ground under the body: the lower ankle's height opened (lowest, then highest of the lowest)
@@ -73,6 +75,11 @@ LEAN_SMOOTHING_S = 0.25
 # STAND_SHARE of their length (chained windows sank a walk's hips to 0.6 of standing in 10 s).
 HIPS_FREE_SHARE = 0.85
 HIPS_KEPT = 0.3
+# Walking arms swing against the legs (``footsteps.Gait.arm_swing``), following how far apart the
+# feet are smoothed over ARM_SMOOTHING_S (a rounded swing rather than the feet's plant and swing);
+# the forearm swings FOREARM_SHARE further forward, as an elbow bends at the front of a swing.
+ARM_SMOOTHING_S = 0.1
+FOREARM_SHARE = 0.5
 
 
 def on_floor(motion, fps, standing):
@@ -329,21 +336,25 @@ def plant_feet(motion, fps, standing, pinned, initial, predicted, stance=None):
 
 def facing_the_path(motion, initial, path, fps):
     """Motion (V, F, 17, 3) turned about its hips, frame by frame, to face along a ground path
-    (F, 3) of the hips: the model walks the path but its body drifts off it (30 to 80 degrees on a
-    quarter circle). The turn is smoothed (FACING_SMOOTHING_S) and eased in from the start pose
-    (FACING_EASE_S); ``initial`` (17, 3) is the start pose, which steadies the hips' direction."""
-    travel = np.gradient(path[:, :2], axis=0)
-    moving = np.flatnonzero(np.linalg.norm(travel, axis=-1) * fps > FACING_MIN_SPEED_M_S)
-    if not len(moving):
-        return motion
-    frames = np.arange(len(path))
-    after = np.minimum(np.searchsorted(moving, frames), len(moving) - 1)
-    before = np.maximum(after - 1, 0)
-    nearest = np.where(np.abs(frames - moving[before]) <= np.abs(moving[after] - frames), moving[before], moving[after])
-    wanted = np.arctan2(travel[nearest, 1], travel[nearest, 0])  # (F,)
-    across = np.stack([steady_across(initial, variant)[0] for variant in motion])  # (V, F, 3), left
-    forward = np.cross(across, np.array([0.0, 0.0, 1.0]))
-    turn = np.unwrap(np.angle(np.exp(1j * (wanted - np.arctan2(forward[..., 1], forward[..., 0])))), axis=-1)
+    (F, 3), or each variant's route (V, F, 3), of the hips: the model walks the path but its body
+    drifts off it (30 to 80 degrees on a quarter circle). The turn is smoothed (FACING_SMOOTHING_S)
+    and eased in from the start pose (FACING_EASE_S); ``initial`` (17, 3) is the start pose, which
+    steadies the hips' direction."""
+    frames = np.arange(motion.shape[1])
+    routes = np.broadcast_to(path, (len(motion),) + path.shape[-2:])
+    turn = np.zeros(motion.shape[:2])
+    for variant, route in enumerate(routes):
+        travel = np.gradient(route[:, :2], axis=0)
+        moving = np.flatnonzero(np.linalg.norm(travel, axis=-1) * fps > FACING_MIN_SPEED_M_S)
+        if not len(moving):
+            continue
+        after = np.minimum(np.searchsorted(moving, frames), len(moving) - 1)
+        before = np.maximum(after - 1, 0)
+        nearest = np.where(np.abs(frames - moving[before]) <= np.abs(moving[after] - frames), moving[before],
+                           moving[after])
+        wanted = np.arctan2(travel[nearest, 1], travel[nearest, 0])  # (F,)
+        forward = np.cross(steady_across(initial, motion[variant])[0], np.array([0.0, 0.0, 1.0]))
+        turn[variant] = np.unwrap(np.angle(np.exp(1j * (wanted - np.arctan2(forward[:, 1], forward[:, 0])))))
     turn = smooth(turn, FACING_SMOOTHING_S * fps) * smoothstep(frames / max(FACING_EASE_S * fps, 1.0))
     cos, sin = np.cos(turn)[..., None], np.sin(turn)[..., None]
     hips = motion[:, :, J["Hip"], None, :2]
@@ -374,9 +385,43 @@ def upright(motion, initial, fps):
     out = motion.copy()
     above = indices(UPPER_BODY)
     arm = motion[:, :, above] - motion[:, :, J["Hip"]][:, :, None]  # (V, F, A, 3)
-    k, cos, sin = axis[:, :, None], np.cos(turn)[..., None, None], np.sin(turn)[..., None, None]
-    turned = arm * cos + np.cross(k, arm) * sin + k * (arm * k).sum(-1, keepdims=True) * (1.0 - cos)
-    out[:, :, above] = motion[:, :, J["Hip"]][:, :, None] + turned
+    out[:, :, above] = motion[:, :, J["Hip"]][:, :, None] + turned(arm, axis, turn)
+    return out
+
+
+def leaning_into_the_walk(motion, leans, fps):
+    """Motion (V, F, 17, 3) with the body above the hips turned forward about them by ``leans`` (V,)
+    degrees as far as the hips walk (``footsteps.walking_share``)."""
+    walking = smooth(footsteps.walking_share(motion[..., J["Hip"], :], fps), LEAN_SMOOTHING_S * fps)  # (V, F)
+    across = np.cross(facing(motion), [0.0, 0.0, 1.0])  # turning the other way about it leans forward
+    above = indices(UPPER_BODY)
+    hips = motion[..., J["Hip"], None, :]
+    out = motion.copy()
+    out[..., above, :] = hips + turned(motion[..., above, :] - hips, across, -np.radians(leans)[:, None] * walking)
+    return out
+
+
+def swinging_arms(motion, swings, fps, initial, free):
+    """Motion (V, F, 17, 3) with each ``free`` arm ((2,) bool, right then left: neither curves nor
+    keys on it) swung about its shoulder against the legs, forward as the other foot is ahead,
+    ``swings`` (V,) degrees per leg length the feet are apart along the body's facing (eased in
+    from the start pose as ``_eased_in``)."""
+    forward = facing(motion)  # (V, F, 3)
+    feet = motion[..., indices(FEET), :]
+    legs = min(limb_length(initial, leg) for leg in LIMBS[:2])
+    apart = smooth(((feet[..., 1, :] - feet[..., 0, :]) * forward).sum(-1), ARM_SMOOTHING_S * fps) / legs
+    across = np.cross(forward, [0.0, 0.0, 1.0])  # turning about it carries a hanging arm forward
+    out = motion.copy()
+    for (shoulder, elbow, wrist), sign, kept in zip(LIMBS[2:], (1.0, -1.0), free):
+        if not kept:
+            continue
+        angle = _eased_in(sign * np.radians(swings)[:, None] * apart, fps)  # (V, F)
+        pivot = motion[..., J[shoulder], None, :]
+        out[..., [J[elbow], J[wrist]], :] = pivot + turned(motion[..., [J[elbow], J[wrist]], :] - pivot, across,
+                                                           angle)
+        hinge = out[..., J[elbow], None, :]
+        out[..., J[wrist], :] = (hinge + turned(out[..., J[wrist], None, :] - hinge, across,
+                                                FOREARM_SHARE * np.maximum(angle, 0.0)))[..., 0, :]
     return out
 
 
@@ -409,7 +454,7 @@ def pin(motion, targets, axes, keyed):
             motion[:, index, J[joint]] = position
     for joint, path in targets.items():
         for axis in np.flatnonzero(axes[joint]):
-            motion[:, :, J[joint], axis] = path[:, axis]
+            motion[:, :, J[joint], axis] = path[..., axis]
     return motion
 
 
@@ -437,26 +482,33 @@ def pinned_joints(frames, targets, keyed, fps=None):
     return pinned
 
 
-def tidy(motion, fps, initial, targets, axes, keyed, predicted, steps=None):
+def tidy(motion, fps, initial, targets, axes, keyed, predicted, walks=None):
     """(motion, contacts (V, F, 2), foot turns (V, F, 2)) of the variants (V, F, 17, 3) at ``fps``
     from the pose ``initial`` (17, 3): on the floor, eased onto the keys, planted feet still (those
     low, or a little higher where the model predicts them planted: ``predicted`` (V, F, 2)),
-    every curve ({joint: (F, 3)}, on its axes {joint: (3,) bool}) and key ({frame index: {joint:
-    (3,)}}) met exactly; a curve of the hips carries the whole body (``carried_by_hips``), and
-    the ankles take the steps planned under a ground path (``steps`` (V, F, 2, 3), right then left)
-    once the body faces along it (the model's own feet land up to 0.4 m short of them)."""
+    every curve ({joint: (F, 3), or each variant's (V, F, 3)}, on its axes {joint: (3,) bool})
+    and key ({frame index: {joint: (3,)}}) met exactly; a curve of the hips carries the whole body
+    (``carried_by_hips``). Under a ground path, ``walks`` (``footsteps.Walks`` at ``fps``): the body
+    faces along each variant's route, its ankles take the planned steps (the model's own feet land
+    up to 0.4 m short of them) and it walks in its gait, leaning into the walk and swinging the
+    arms free of curves and keys against the legs."""
     standing = min(initial[J[foot], 2] for foot in FEET)
     on_curves = pinned_joints(motion.shape[1], targets, {})  # keys ease in after the feet are planted
     motion = carried_by_hips(motion, targets, axes)
     if "Hip" in targets and not axes["Hip"][2]:  # a ground path: walk facing along it
-        motion = facing_the_path(motion, initial, targets["Hip"], fps)
+        motion = facing_the_path(motion, initial, targets["Hip"] if walks is None else walks.routes, fps)
     stance = None
-    if steps is not None:
+    if walks is not None:
         motion = motion.copy()
-        motion[:, :, indices(FEET)] = steps
-        stance = np.stack([footsteps.stance(variant) for variant in steps])
+        motion[:, :, indices(FEET)] = walks.ankles
+        stance = np.stack([footsteps.stance(variant) for variant in walks.ankles])
     motion = upright(motion, initial, fps)
     motion = hips_up(on_floor(ease_out_of_start(motion, fps), fps, standing), initial, fps, standing)
     motion = without_slide(motion, fps, standing, on_curves, initial, targets, predicted, stance)
     motion, contacts, turns = plant_feet(motion, fps, standing, on_curves, initial, predicted, stance)
+    if walks is not None:
+        fixed = set(targets).union(*keyed.values())
+        motion = leaning_into_the_walk(motion, np.array([gait.lean for gait in walks.gaits]), fps)
+        motion = swinging_arms(motion, np.array([gait.arm_swing for gait in walks.gaits]), fps, initial,
+                               [not fixed & set(arm) for arm in LIMBS[2:]])
     return pin(ease_onto_keys(motion, keyed, fps), targets, axes, keyed), contacts, turns

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .filters import runs, smoothstep
+from .filters import runs, smooth, smoothstep
 from .skeleton import FEET, JOINT_INDEX, LIMBS, limb_length
 
 J = JOINT_INDEX
@@ -52,17 +52,65 @@ HEEL_OFF, HEEL_PITCH_DEG = 0.5, 37.0
 FOOT_M = 0.2  # ankle to toe tip over the ground, an adult's (a rig's own where it has toes)
 STRIDE_SPREAD = (0.9, 1.1)  # stride scales of a walk's variants
 DELAY_SPREAD = (0.05, 0.25)  # their first lifts, in strides after the hips set off
+# Drawn without times, a ground path is walked from rest to rest, speeding up over WALK_EASE_S and
+# slowing over as long (over 0.5 s the hips ran ahead of the first steps and the legs' reach dropped
+# them to 0.8 of their height); a walk's variants set off and arrive over EASE_SPREAD, so they are
+# not in step along the path.
+WALK_EASE_S = 0.8
+EASE_SPREAD = (0.6, 1.0)
+# From WALKING_FULL_M_S the walk's lean and sway are full; slower, less, and none standing.
+WALKING_FULL_M_S = 1.0
+# The arms swing against the legs (cleanup.swinging_arms) by ARM_SWING_DEG per leg length the feet are
+# apart along the body's facing: at a 1.1 m/s walk the wrist swings about 0.35 m front to back,
+# the median of 38 captured walks of ../shared (0.1 to 0.7 m, more the faster). The model's own arms
+# hang nearly still (0.08-0.15 m). A walk's variants swing theirs over ARM_SWING_SPREAD.
+ARM_SWING_DEG = 24.0
+ARM_SWING_SPREAD = (12.0, 40.0)
+# Walking, the torso leans LEAN_DEG forward of the model's (cleanup.leaning_into_the_walk); a walk's
+# variants lean over LEAN_SPREAD. Between people of ../shared walking the same path (statures
+# scaled alike), the neck and head lie 9 cm apart, the wrists 14 cm: posture differs.
+LEAN_DEG = 3.0
+LEAN_SPREAD = (-2.0, 8.0)
+# Walking, the hips sway SWAY_SHARE of the way toward the foot bearing the body (one moving slower
+# than BEARING_SPEED_M_S: an ankle rolling onto its toes still bears it), at most SWAY_M, smoothed
+# over SWAY_SMOOTHING_S: a walker's pelvis shifts 2-3 cm over each stance foot, not along a rail.
+SWAY_SHARE, SWAY_M = 0.4, 0.03
+SWAY_SMOOTHING_S = 0.1
+BEARING_SPEED_M_S = 0.5
 
 
 @dataclass(frozen=True)
 class Gait:
     """How one take walks: its strides scaled by ``stride`` (longer, a slower cadence), its first
     lift ``delay`` strides after the hips set off, led by the foot farther behind unless
-    ``other_foot_first``."""
+    ``other_foot_first``, its arms swinging ``arm_swing`` degrees per leg the feet are apart, its
+    torso leaning ``lean`` degrees forward; a path drawn without times it walks speeding up over
+    ``ease_in`` seconds and slowing over ``ease_out``."""
 
     stride: float = 1.0
     delay: float = START_DELAY
     other_foot_first: bool = False
+    arm_swing: float = ARM_SWING_DEG
+    lean: float = LEAN_DEG
+    ease_in: float = WALK_EASE_S
+    ease_out: float = WALK_EASE_S
+
+
+@dataclass(frozen=True)
+class Walks:
+    """Each variant's planned walk under a ground path of the hips, frames at one rate: its ankles
+    (V, F, 2, 3) and feet's pitches (V, F, 2), right then left (``planned_feet``), its hips' route
+    (V, F, 3) before they sway over the feet (``swayed``), and its ``Gait`` [V]."""
+
+    ankles: np.ndarray
+    pitches: np.ndarray
+    routes: np.ndarray
+    gaits: list
+
+    def resampled(self, resample):
+        """The same walks on other frames: ``resample`` maps values (V, F, ..., 3) over frames."""
+        return Walks(resample(self.ankles), resample(self.pitches[..., None])[..., 0],
+                     resample(self.routes[:, :, None])[:, :, 0], self.gaits)
 
 
 def swing_share(speed):
@@ -231,17 +279,42 @@ def stance(feet):
     return still
 
 
+def walking_share(hips, fps):
+    """How fully hips (..., F, 2 or 3) walk on each frame (..., F): their horizontal speed over
+    WALKING_FULL_M_S, at most 1."""
+    speed = np.linalg.norm(np.gradient(hips[..., :2], axis=-2), axis=-1) * fps
+    return np.clip(speed / WALKING_FULL_M_S, 0.0, 1.0)
+
+
+def swayed(path, feet, fps):
+    """A ground path of the hips (F, 3) swayed toward the foot bearing the body, of the planned
+    ankles (F, 2, 3) (see SWAY_SHARE), as far as the hips walk (``walking_share``)."""
+    forward = np.gradient(path[:, :2], axis=0)
+    forward /= np.maximum(np.linalg.norm(forward, axis=-1, keepdims=True), 1e-9)
+    left = np.stack([-forward[:, 1], forward[:, 0]], axis=-1)
+    speed = np.linalg.norm(np.gradient(feet[..., :2], axis=0), axis=-1) * fps  # (F, 2)
+    bearing = np.clip(1.0 - speed / BEARING_SPEED_M_S, 0.0, 1.0)
+    support = (feet[..., :2] * bearing[..., None]).sum(1) / np.maximum(bearing.sum(1), 1e-9)[:, None]
+    across = np.where(bearing.any(1), ((support - path[:, :2]) * left).sum(-1), 0.0)
+    across = np.clip(SWAY_SHARE * across, -SWAY_M, SWAY_M) * walking_share(path, fps)
+    out = path.copy()
+    out[:, :2] += smooth(across, SWAY_SMOOTHING_S * fps)[:, None] * left
+    return out
+
+
 def variant_gaits(count, rng):
-    """A ``Gait`` for each of ``count`` variants of a walk: strides and first lifts spread evenly
-    over STRIDE_SPREAD and DELAY_SPREAD, each in its own random order, every other variant leading
-    with the other foot, so the variants differ in step timing, not only in what the model adds
-    above the feet (5 variants of a 4 m walk as the model draws them: 0.06 m apart in their own
-    gaits, 0.03 m in one)."""
+    """A ``Gait`` for each of ``count`` variants of a walk: strides, first lifts, arm swings, leans
+    and eases in and out spread evenly over STRIDE_SPREAD, DELAY_SPREAD, ARM_SWING_SPREAD,
+    LEAN_SPREAD and EASE_SPREAD, each in its own random order, every other variant leading with
+    the other foot, so the variants differ in timing, arm swing and posture, not only in what the
+    model adds above the feet (5 variants of a 4 m walk as the model draws them: 0.03 m apart in
+    one gait, 0.06 m in their own steps)."""
     if count == 1:
         return [Gait()]
-    strides, delays = (rng.permutation(np.linspace(*spread, count)) for spread in (STRIDE_SPREAD, DELAY_SPREAD))
-    return [Gait(float(stride), float(delay), bool(index % 2))
-            for index, (stride, delay) in enumerate(zip(strides, delays))]
+    spreads = (STRIDE_SPREAD, DELAY_SPREAD, ARM_SWING_SPREAD, LEAN_SPREAD, EASE_SPREAD, EASE_SPREAD)
+    drawn = np.stack([rng.permutation(np.linspace(*spread, count)) for spread in spreads], axis=1)
+    return [Gait(float(stride), float(delay), bool(index % 2), *map(float, style))
+            for index, (stride, delay, *style) in enumerate(drawn)]
 
 
 def toes_down(pitches, heels, foot=FOOT_M):

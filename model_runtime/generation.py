@@ -204,16 +204,18 @@ def windows(total, window, overlap=WINDOW_OVERLAP):
     return schedule
 
 
-def eased(progress, ease):
+def eased(progress, ease, ease_out=None):
     """Share of the way covered (same shape) at ``progress`` in [0, 1] of the time, with constant
-    acceleration over the first and last ``ease`` of it (a trapezoid of speed), linear for 0."""
-    if ease <= 0.0:
+    acceleration over the first ``ease`` of it and deceleration over the last ``ease_out`` (by
+    default ``ease``): a trapezoid of speed; linear for no ease."""
+    ease_in, ease_out = min(ease, 0.5), min(ease if ease_out is None else ease_out, 0.5)
+    if ease_in <= 0.0 and ease_out <= 0.0:
         return progress
-    ease = min(ease, 0.5)
-    top = 1.0 / (1.0 - ease)  # the cruising speed, in shares of the way per share of the time
+    top = 1.0 / (1.0 - 0.5 * (ease_in + ease_out))  # the cruising speed, in shares of the way per share of the time
     rest = 1.0 - progress
-    return np.where(progress < ease, top * progress ** 2 / (2 * ease),
-                    np.where(rest < ease, 1.0 - top * rest ** 2 / (2 * ease), top * (progress - ease / 2)))
+    return np.where(progress < ease_in, top * progress ** 2 / (2 * max(ease_in, 1e-9)),
+                    np.where(rest < ease_out, 1.0 - top * rest ** 2 / (2 * max(ease_out, 1e-9)),
+                             top * (progress - ease_in / 2)))
 
 
 def time_shares(frames, span):

@@ -14,6 +14,12 @@ def axis_angle(axis, angles):
     return quat
 
 
+def turned(vectors, axis, angle):
+    """Vectors (..., N, 3) turned by ``angle`` (...) radians about unit ``axis`` (..., 3) (Rodrigues)."""
+    k, cos, sin = axis[..., None, :], np.cos(angle)[..., None, None], np.sin(angle)[..., None, None]
+    return vectors * cos + np.cross(k, vectors) * sin + k * (vectors * k).sum(-1, keepdims=True) * (1.0 - cos)
+
+
 def multiply(a, b):
     """Hamilton product a * b of (..., 4) quaternions (apply b, then a)."""
     aw, ax, ay, az = np.moveaxis(a, -1, 0)

@@ -5,8 +5,8 @@
 1. ``model_input``: the curves and keys as the model's known joints, at its
    native 30 fps in its own frame (metres, floor at z = 0, see
    ``generation.Placement``), and each curve's target on every scene frame;
-   under a ground path of the hips, each variant's planned steps
-   (``planned_steps``) as known feet;
+   under a ground path of the hips, each variant's planned walk
+   (``planned_walks``): its hips and steps as known joints;
 2. ``generation.generate``: the model's variants over the whole shot;
 3. ``cleanup.tidy``: at the scene's frame rate, the variants put on the
    floor, eased onto the keys, planted feet held still, curves and keys met;
@@ -43,10 +43,8 @@ COMPARED_FRAMES = 300
 # A curve bound to the hips whose mean height over the floor is under this share of the hips'
 # standing height is a ground path: it gives the hips' horizontal position only (the feet step as
 # planned under it, the model chooses the hips' height and the body), and without drawing times the
-# walk along it speeds up from rest and slows to rest over GROUND_EASE_S at either end (over 0.5 s
-# the hips ran ahead of the first steps and the legs' reach dropped them to 0.8 of their height).
+# walk along it speeds up from rest and slows to rest (``footsteps.WALK_EASE_S``).
 GROUND_PATH_HEIGHT = 0.5
-GROUND_EASE_S = 0.8
 # A foot curve drawn without times whose mean height over the floor is under this, at least
 # ``footsteps.Stepping.SHORTEST_PATH_M`` long, is a path of footsteps: the foot plants and swings
 # along it (``foot_stepping``).
@@ -107,10 +105,11 @@ class ModelInput:
     """A request as the model sees it: ``placement`` (world <-> model frame), initial (17, 3),
     trajectories (T, 17, 3) and mask (T, 17, 3) of the known joint coordinates on the model frames
     after the initial one; targets: joint -> (F, 3) world position its curve asks for on each scene
-    frame, of which axes: joint -> (3,) bool says the coordinates followed (a ground path: x and y);
-    keyed: scene frame index -> {joint: (3,) model-frame position}; steps: each variant's ankles
-    (V, 1 + T, 2, 3) and feet's pitches (V, 1 + T, 2), right then left, planned under a ground path
-    (``footsteps.planned_feet``), or None; with steps, trajectories are each variant's (V, T, 17, 3)."""
+    frame (``variant_target``), of which axes: joint -> (3,) bool says the coordinates followed (a
+    ground path: x and y); keyed: scene frame index -> {joint: (3,) model-frame position}; walks:
+    each variant's walk planned under a ground path (``planned_walks``: a ``footsteps.Walks``
+    on 1 + T frames in the model frame), or None; with walks, trajectories are each variant's
+    (V, T, 17, 3), and so are the hips' targets (V, F, 3)."""
 
     placement: generation.Placement
     initial: np.ndarray
@@ -119,14 +118,14 @@ class ModelInput:
     targets: dict
     axes: dict
     keyed: dict
-    steps: np.ndarray = None
+    walks: footsteps.Walks = None
 
 
 @dataclass
 class Result:
     """A shot's variants: motion (count, F, 17, 3) world at the scene's frames; contacts
     (count, F, 2) planted right and left feet; targets: joint -> (F, 3) world position its curve
-    asks for on each scene frame, on the coordinates axes: joint -> (3,) bool;
+    asks for on each scene frame (``variant_target``), on the coordinates axes: joint -> (3,) bool;
     channels, per variant ``retarget.key_channels``;
     shortfall, per variant {joint: (F,) world distance its curve lies beyond the limb's reach};
     difference, per variant the mean joint distance to the nearest other variant (world)."""
@@ -138,6 +137,12 @@ class Result:
     channels: list
     shortfall: list
     difference: list
+
+
+def variant_target(path, index):
+    """Variant ``index``'s target (F, 3) of a curve's targets: (F, 3), or each variant's own
+    (V, F, 3) (the hips of a walk, each in its own time)."""
+    return path if path.ndim == 2 else path[index]
 
 
 def check_arguments(count, seed, diversity):
@@ -187,39 +192,56 @@ def model_input(request):
         mask[:, J["Hip"]] = axes["Hip"]
         targets["Hip"] = waypoint_path(request, waypoints, len(frames) - 1, len(frames) - 1)
     initial = placement.to_model(request.start_joints)
-    planned = planned_steps(request, initial, trajectories, axes, keyed, _foot_length(request, placement))
-    if planned is not None:  # the model completes each variant's walking body around its planned steps
+    walks = planned_walks(request, placement, initial, axes, keyed, waypoints, steps, span)
+    if walks is not None:  # the model completes each variant's walking body around its planned steps
+        hips, walks = walks
         trajectories = np.repeat(trajectories[None], request.count, axis=0)
-        trajectories[:, :, indices(FEET)], mask[:, indices(FEET)] = planned[0][:, 1:], 1.0
-    return ModelInput(placement, initial, trajectories, mask, targets, axes, keyed, planned)
+        trajectories[:, :, J["Hip"], :2] = placement.to_model(hips[:, 1:])[..., :2]
+        trajectories[:, :, indices(FEET)], mask[:, indices(FEET)] = walks.ankles[:, 1:], 1.0
+        targets["Hip"] = generation.to_scene_rate(hips[:, :, None], len(frames), fps)[:, :, 0]
+    return ModelInput(placement, initial, trajectories, mask, targets, axes, keyed, walks)
 
 
-def planned_steps(request, initial, trajectories, axes, keyed, foot):
-    """Each variant's steps (ankles (V, 1 + T, 2, 3), pitches (V, 1 + T, 2)) under a ground path of
-    the hips (model frame, at the model's rate), in its own gait (``footsteps.variant_gaits``),
-    where the artist gave the feet neither curves nor keys; else None. ``foot``: the rig's ankle to
-    toe length (model frame), about which the feet roll."""
+def planned_walks(request, placement, initial, axes, keyed, waypoints, steps, span):
+    """Each variant's walk under a ground path of the hips, in its own gait
+    (``footsteps.variant_gaits``), where the artist gave the feet neither curves nor keys: (its hips
+    (V, 1 + T, 3) world, ``footsteps.Walks`` in the model frame) at the model's rate, on ``steps``
+    frames ``span`` of them to the shot's end; else None.
+    A path drawn without times each variant walks in its own time (``Gait.ease_in``, ``ease_out``),
+    its hips swaying over its feet (``footsteps.swayed``); waypoints are passed on their frames."""
     ground = "Hip" in axes and not axes["Hip"][2]
     if not ground or any(foot in axes or any(foot in joints for joints in keyed.values()) for foot in FEET):
         return None
-    hips = np.concatenate([initial[None, J["Hip"], :2], trajectories[:, J["Hip"], :2]]).astype(np.float64)
-    plans = [footsteps.planned_feet(hips, initial, generation.NATIVE_FPS, gait, foot)
-             for gait in footsteps.variant_gaits(request.count, np.random.default_rng(request.seed))]
-    if plans[0] is None:
-        return None
-    return tuple(np.stack(part) for part in zip(*plans))
+    foot = _foot_length(request, placement)
+    gaits = footsteps.variant_gaits(request.count, np.random.default_rng(request.seed))
+    walks = []
+    for gait in gaits:
+        if waypoints is None:
+            path = path_samples(request, "Hip", steps, span, (gait.ease_in, gait.ease_out))
+        else:
+            path = waypoint_path(request, waypoints, steps, span)
+        path[0, :2] = request.start_joints[J["Hip"], :2]
+        hips = placement.to_model(path).astype(np.float64)
+        plan = footsteps.planned_feet(hips[:, :2], initial, generation.NATIVE_FPS, gait, foot)
+        if plan is None:
+            return None
+        swayed = hips if waypoints is not None else footsteps.swayed(hips, plan[0], generation.NATIVE_FPS)
+        walks.append((path + (swayed - hips) / placement.scale, *plan, hips))
+    world, ankles, pitches, routes = (np.stack(part) for part in zip(*walks))
+    return world, footsteps.Walks(ankles, pitches, routes, gaits)
 
 
-def path_samples(request, joint, count, span):
+def path_samples(request, joint, count, span, eases=(footsteps.WALK_EASE_S, footsteps.WALK_EASE_S)):
     """Where a joint's curve puts it on 1 + ``count`` frames, ``span`` of them to the shot's end
     (world units, (1 + count, 3)). Drawn without times, a ground path speeds up from rest and slows
-    to rest over GROUND_EASE_S at either end, and a foot path on the floor steps
+    to rest over ``eases`` (seconds in, out), and a foot path on the floor steps
     (``foot_stepping``); otherwise the curve is followed at its drawing speed, or uniformly."""
     points, times = request.curves[joint]
     stepping = foot_stepping(request, joint) if times is None else None
     timing = stepping
     if times is None and joint == "Hip" and on_the_ground(request, points):
-        timing = functools.partial(generation.eased, ease=min(GROUND_EASE_S / max(request.seconds, 1e-9), 0.5))
+        seconds = max(request.seconds, 1e-9)
+        timing = functools.partial(generation.eased, ease=eases[0] / seconds, ease_out=eases[1] / seconds)
     samples = generation.curve_samples(points, count, span, times, timing)
     if stepping is not None:  # the ankle at its standing height over the path, lifted in each swing
         lift = stepping.lift(generation.time_shares(count, span))
@@ -301,7 +323,8 @@ def check_reach(request, given):
     feet = min(request.start_joints[J["LFoot"]][2], request.start_joints[J["RFoot"]][2])
     seconds = request.seconds
     problems = []
-    for joint, path in given.targets.items():
+    for joint, paths in given.targets.items():
+        path = variant_target(paths, 0)  # a walk's variants take one path, each in its own time
         name = f"curve {curve_name(request, joint)!r} ({request.rig.bones[joint]})"
         axes = given.axes[joint]
         gap = np.linalg.norm((path[0] - request.start_joints[J[joint]])[axes]) * request.metres_per_unit
@@ -346,15 +369,14 @@ def run(request, model, sampler=None, progress=None, given=None):
     del motion
     planted = generation.to_scene_rate(planted[..., None], frames, request.fps)[..., 0]
     targets = {joint: given.placement.to_model(path).astype(np.float64) for joint, path in given.targets.items()}
-    steps = pitches = None
-    if given.steps is not None:
-        steps = generation.to_scene_rate(given.steps[0], frames, request.fps)  # (V, F, 2, 3)
-        pitches = generation.to_scene_rate(given.steps[1][..., None], frames, request.fps)[..., 0]
+    walks = pitches = None
+    if given.walks is not None:
+        walks = given.walks.resampled(lambda values: generation.to_scene_rate(values, frames, request.fps))
     scene_rate, contacts, turns = cleanup.tidy(scene_rate, request.fps, given.initial, targets, given.axes,
-                                               given.keyed, planted, steps)
-    if pitches is not None:
+                                               given.keyed, planted, walks)
+    if walks is not None:
         ankles = scene_rate[:, :, indices(FEET), 2] - min(given.initial[J[foot], 2] for foot in FEET)
-        pitches = footsteps.toes_down(pitches, ankles, _foot_length(request, given.placement))
+        pitches = footsteps.toes_down(walks.pitches, ankles, _foot_length(request, given.placement))
     report(INFERENCE_SHARE)  # a chance to stop before the retarget
     world = given.placement.to_world(scene_rate)
     del scene_rate
@@ -365,7 +387,6 @@ def run(request, model, sampler=None, progress=None, given=None):
     turns = turns - _yaw(request.armature_to_world)[None, :, None]  # the feet's turns in armature space
     world_scale = np.abs(np.linalg.det(request.armature_to_world[:, :3, :3])) ** (1.0 / 3.0)  # (F or 1,)
     world_to_armature = np.linalg.inv(request.armature_to_world)
-    curves_here = {joint: to_armature(world_to_armature, path) for joint, path in given.targets.items()}
     channels, shortfall = [], []
     for index in range(request.count):
         deltas = retarget.joint_deltas(request.rig, to_armature(world_to_armature, world[index]), pinned,
@@ -377,8 +398,9 @@ def run(request, model, sampler=None, progress=None, given=None):
             raise InputError("the retarget returned keys that are not a number for this rig; nothing was written")
         channels.append(keys)
         achieved = retarget.achieved_joints(request.rig, deltas)
-        shortfall.append({joint: world_scale * retarget.reach_shortfall(request.rig, achieved, path, joint)
-                          for joint, path in curves_here.items()})
+        shortfall.append({joint: world_scale * retarget.reach_shortfall(
+            request.rig, achieved, to_armature(world_to_armature, variant_target(path, index)), joint)
+            for joint, path in given.targets.items()})
         report(INFERENCE_SHARE + (1.0 - INFERENCE_SHARE) * (index + 1) / request.count)
     return Result(world, contacts, given.targets, given.axes, channels, shortfall, _nearest_other(world))
 

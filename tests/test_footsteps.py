@@ -28,7 +28,7 @@ def standing(all_clips):
 
 def _straight(metres, frames):
     """Hips (1 + frames, 2) along +x, eased from rest to rest as a ground path drawn without times is."""
-    share = generation.eased(np.linspace(0.0, 1.0, frames + 1), shot.GROUND_EASE_S * FPS / frames)
+    share = generation.eased(np.linspace(0.0, 1.0, frames + 1), footsteps.WALK_EASE_S * FPS / frames)
     return np.column_stack([metres * share, np.zeros(frames + 1)])
 
 

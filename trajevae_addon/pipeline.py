@@ -348,8 +348,8 @@ class Writer:
             _, world = rig_state.read(self.armature, self.job.bones, bpy.context.evaluated_depsgraph_get(),
                                       self.job.shown_by)
             for joint, path in self.job.result.targets.items():
-                axes = self.job.result.axes[joint]
-                measured.append((joint, position, float(np.linalg.norm((world[J[joint]] - path[position])[axes]))))
+                axes, asked = self.job.result.axes[joint], shot.variant_target(path, index)[position]
+                measured.append((joint, position, float(np.linalg.norm((world[J[joint]] - asked)[axes]))))
         self._measured[index] = measured or [(None, 0, 0.0)]
 
     def _measured_frames(self, index):
