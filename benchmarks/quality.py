@@ -53,7 +53,7 @@ neck base from vertical. swing: the wrists' swing front to back (5th-95th percen
 limits fitted on the training data. spread: mean pairwise joint distance of the variants. curve: the bound joint
 to where its curve puts it. path: the hips' farthest from a ground path; facing: worst angle of the body's facing
 from the path's tangent; hip h: the hips' lowest height over their standing height; seam: the worst acceleration
-within 2 frames of where model windows meet over the worst elsewhere. key: worst keyed joint at the key frame / the head top, which the keyed rotation of
+within 2 frames of where model windows meet over the worst elsewhere / the same of the means. key: worst keyed joint at the key frame / the head top, which the keyed rotation of
 the head bone places. Over variants: float, sink, acc, spike, lean, knee-in and key are the worst, the rest means.
 Capture, levelled: the clip with its capture floor levelled as the training data loader levels it; the tilt is
 how far that moved points up or down over the clip."""
@@ -148,11 +148,11 @@ def walk_figures(shot):
         return {"path cm": "-", "facing deg": "-", "hip h %": "-", "seam x": "-"}
     followed = [quality.path_following(joints, shot.curves["Hip"]) for joints in shot.joints]
     joins = generation.window_joins(shot.joints.shape[1], FPS, ModelConfig().frames)
-    seams = [quality.seam(joints, FPS, joins) for joints in shot.joints] if joins else []
+    seams = np.array([quality.seam(joints, FPS, joins) for joints in shot.joints]) if joins else None
     return {"path cm": f"{100 * max(away for away, _ in followed):.0f}",
             "facing deg": f"{max(angles.max() for _, angles in followed):.0f}",
             "hip h %": f"{100 * min(quality.hip_height_share(joints, shot.floor) for joints in shot.joints):.0f}",
-            "seam x": f"{max(seams):.1f}" if seams else "-"}
+            "seam x": "-" if seams is None else f"{seams[:, 0].max():.1f} / {seams[:, 1].max():.1f}"}
 
 
 def curve_error(shot):

@@ -53,15 +53,18 @@ def pops(joints, fps):
 
 
 def seam(joints, fps, joins, near=2):
-    """The worst joint acceleration within ``near`` frames of the frame indices ``joins`` (where
-    model windows meet) over the worst elsewhere: above 1, the joins show."""
+    """(worst, mean): the worst frame's joint acceleration within ``near`` frames of the frame
+    indices ``joins`` (where model windows meet) over the worst elsewhere, and the same of their
+    means. Above 1, the joins show; in a walk the worst is often a heel strike that happens to
+    fall near a join, which the mean ratio tells apart."""
     per_frame = accelerations(joints, fps)  # entry i: frame i + 1
     close = np.zeros(len(per_frame), dtype=bool)
     for frame in joins:
         close[max(frame - 1 - near, 0):max(frame + near, 0)] = True
     if close.all() or not close.any():
-        return float("nan")
-    return float(per_frame[close].max() / max(per_frame[~close].max(), 1e-9))
+        return float("nan"), float("nan")
+    return (float(per_frame[close].max() / max(per_frame[~close].max(), 1e-9)),
+            float(per_frame[close].mean() / max(per_frame[~close].mean(), 1e-9)))
 
 
 def steps(toes, floor):

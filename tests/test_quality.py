@@ -198,10 +198,10 @@ def test_long_shots_are_windows_that_overlap_and_a_step_at_a_join_shows_as_a_sea
     time = np.arange(300) / FPS
     swaying = np.zeros((300, 17, 3))
     swaying[..., 0] = 0.1 * np.sin(2.0 * np.pi * time)[:, None]  # a smooth sway
-    assert animation_quality.seam(swaying, FPS, joins) <= 1.0 + 1e-9
+    assert animation_quality.seam(swaying, FPS, joins)[0] <= 1.0 + 1e-9
     stepped = swaying.copy()
     stepped[joins[3]:, :, 1] += 0.02  # 2 cm where the third window's own frames begin
-    assert animation_quality.seam(stepped, FPS, joins) > 3.0
+    assert animation_quality.seam(stepped, FPS, joins)[0] > 3.0
 
 
 def test_a_foot_hovering_while_the_other_steps_bears_the_body():
