@@ -43,6 +43,9 @@ MAX_LEAN_TO_HAND = 30.0
 # How far (degrees) a knee or elbow may point away from the way its hinge bends it, and the bend (in
 # upper-limb lengths) at which the generated direction counts half.
 MAX_BEND_TURN = {"leg": 30.0, "arm": 90.0}
+# A knee turns at most this far (degrees) inward, toward the other leg: the model's knees pointed
+# up to 22 degrees inward through whole idle shots (knock-kneed; captured motion: 0-12).
+KNEE_INWARD_DEG = 8.0
 POLE_PRIOR = 0.2
 KEYED_BEND_TRUST = 0.05  # a keyed middle joint this far (upper-limb lengths) off its limb's line sets the bend
 # No knee or elbow folds tighter than captured ones do: the cosine between the upper and lower
@@ -237,10 +240,10 @@ def _lean_to_hands(rig, targets, chest, pivot, pinned):
 
 
 MAX_PELVIS_DROP = 0.15  # the most the feet's reach may lower the pelvis, in leg lengths
-# The pelvis comes down so the feet lie within LEG_REACH of a leg's length, or as far as the start
-# pose has them (a walk's leg never straightens to its last 0.5 %: there a millimetre of reach swung
-# the knee 3 cm, knees accelerated at 3x a captured walk's, 130 m/s^2 at heel strikes), its drop
-# eased over PELVIS_EASE frames either side (dropped frame by frame, the hips dipped 5 cm in 3 frames).
+# Where the artist did not fix it, the pelvis comes down so the feet lie within LEG_REACH of a leg's
+# length (a walk's leg never straightens to its last 0.5 %: there a millimetre of reach swung the
+# knee 3 cm, knees accelerated at 3x a captured walk's, 130 m/s^2 at heel strikes), its drop eased
+# over PELVIS_EASE frames either side (dropped frame by frame, the hips dipped 5 cm in 3 frames).
 LEG_REACH = 0.995
 PELVIS_EASE = 3
 
@@ -262,8 +265,7 @@ def _reach_feet(rig, targets, pelvis, free, hips_on_path=False, rounds=4):
     for _ in range(rounds):
         shift = np.zeros((len(targets), 3))
         for upper, lower, end in LIMBS[:2]:
-            reach = max(LEG_REACH * limb_length(start, (upper, lower, end)),  # the start pose's legs as they are
-                        float(np.linalg.norm(start[J[end]] - start[J[upper]])))
+            reach = LEG_REACH * limb_length(start, (upper, lower, end))
             to_end = targets[:, J[end]] - _apply(moved, start[J[upper]])
             distance = np.linalg.norm(to_end, axis=-1, keepdims=True)
             shift += np.maximum(distance - reach, 0.0) * to_end / np.maximum(distance, 1e-9)
@@ -317,6 +319,12 @@ def _limb(rig, targets, parent, upper, lower, end, heading, fixed, pitch=None):
     size = np.hypot(bend_x, bend_y)
     limit = np.radians(MAX_BEND_TURN["leg" if end.endswith("Foot") else "arm"])
     angle = np.arctan2(bend_y, bend_x)
+    low = high = np.full(len(targets), limit)
+    if end.endswith("Foot"):  # turned toward the other hip is inward
+        other = next(leg[0] for leg in LIMBS[:2] if leg[0] != upper)
+        inward = np.sum(side * (parent[:, :3, :3] @ (start[J[other]] - start[J[upper]])), axis=-1) > 0.0
+        high = np.where(inward, np.radians(KNEE_INWARD_DEG), limit)
+        low = np.where(inward, limit, np.radians(KNEE_INWARD_DEG))
     behind = np.clip((np.pi - np.abs(angle)) / (0.5 * np.pi), 0.0, 1.0)  # a bend generated backwards counts less
     # A keyed bend is taken continuous in time (one wrapping from +180 to -180 degrees while the
     # key's weight eased out swung an elbow 8 cm in a frame), and only as far as the keyed limb is
@@ -324,7 +332,7 @@ def _limb(rig, targets, parent, upper, lower, end, heading, fixed, pitch=None):
     keyed = np.unwrap(angle)
     keyed -= 2.0 * np.pi * np.round(np.median(keyed) / (2.0 * np.pi))
     as_keyed = fixed * np.clip(size / (KEYED_BEND_TRUST * first), 0.0, 1.0)
-    turn = as_keyed * keyed + (1.0 - as_keyed) * np.clip(angle, -limit, limit) * behind * size / (
+    turn = as_keyed * keyed + (1.0 - as_keyed) * np.clip(angle, -low, high) * behind * size / (
         size + POLE_PRIOR * first)
     pole = np.cos(turn)[:, None] * own_bend + np.sin(turn)[:, None] * side
     cos = (first ** 2 + reach ** 2 - second ** 2) / (2.0 * first * reach)

@@ -61,8 +61,12 @@ def test_retarget_puts_hands_and_feet_on_their_targets_with_rig_lengths(motion):
 
 
 def test_retarget_of_the_initial_pose_changes_nothing(motion):
+    """The rig's own pose with its hips where the artist put them (a shot's first frame) retargets to
+    itself; unfixed, the pelvis would come down to bend straight legs to ``retarget.LEG_REACH``."""
     rig, rest = _plain_rig(motion[0])
-    bases = retarget.bone_bases(rig, retarget.joint_deltas(rig, np.repeat(motion[:1], 3, axis=0)))
+    pinned = np.zeros((3, 17))
+    pinned[:, JOINT_INDEX["Hip"]] = 1.0
+    bases = retarget.bone_bases(rig, retarget.joint_deltas(rig, np.repeat(motion[:1], 3, axis=0), pinned))
     for bone, basis in bases.items():
         np.testing.assert_allclose(basis, np.broadcast_to(np.eye(4), basis.shape), atol=1e-5, err_msg=bone)
 
