@@ -20,8 +20,9 @@ import numpy as np
 
 from .data.clips import NATIVE_FPS
 from .augment import rotate_about_z
+from .filters import smoothstep
 from .masks import per_coordinate
-from .skeleton import JOINT_INDEX, JOINT_NAMES, LOWER_BODY, PARENTS, UPPER_BODY, facing, indices
+from .skeleton import JOINT_INDEX, JOINT_NAMES, LIMBS, LOWER_BODY, PARENTS, UPPER_BODY, facing, indices
 
 # Hip-knee-ankle length of the training subjects (metres, 201 clips: 0.796 to
 # 0.880, median 0.808): rigs whose legs fall outside are scaled to the median.
@@ -96,12 +97,17 @@ def _window(model, initial, trajectories, mask, count, rng, diversity, sampler, 
 
 
 def anchored(poses, initial):
-    """Poses (B, 17, 3) with everything above the hips as in ``initial`` (17, 3), turned about Z with
-    each pose's pelvis, and the hips at the initial pose's height: a later window's first pose."""
+    """Poses (B, 17, 3) with the torso, neck and head as in ``initial`` (17, 3), turned about Z with
+    each pose's pelvis, the arms hanging from its shoulders as they were, and the hips at the
+    initial pose's height: a later window's first pose. (Arms taken from ``initial`` as well went
+    back to the start pose's at every window: from an A pose, idle arms rose at each join.)"""
     out = poses.copy()
     upper, root = indices(UPPER_BODY), JOINT_INDEX["Hip"]
     offsets = np.broadcast_to(initial[upper] - initial[root], (len(poses), len(upper), 3))  # (B, U, 3)
     out[:, upper] = poses[:, root, None] + rotate_about_z(offsets, _facing_angle(poses) - _facing_angle(initial))
+    for shoulder, elbow, wrist in LIMBS[2:]:
+        for joint, parent in ((elbow, shoulder), (wrist, elbow)):
+            out[:, JOINT_INDEX[joint]] = out[:, JOINT_INDEX[parent]] + poses[:, JOINT_INDEX[joint]] - poses[:, JOINT_INDEX[parent]]
     raised = indices(UPPER_BODY + ("Hip", "RHip", "LHip"))
     out[:, raised, 2] += (initial[root, 2] - poses[:, root, 2])[:, None]
     return out
@@ -170,7 +176,7 @@ def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, samp
         else:
             new, feet = (part[:, 0] for part in _window(model, anchored(motion[:, start], initial), given, known, 1,
                                                          rng, diversity, None, continuation=True))
-        fade = np.linspace(0.0, 1.0, carried + 2)[1:-1, None]
+        fade = smoothstep(np.linspace(0.0, 1.0, carried + 2)[1:-1, None])  # no kink where it starts or ends
         motion[:, start + 1:done + 1] = motion[:, start + 1:done + 1] * (1.0 - fade[..., None]) \
             + new[:, :carried] * fade[..., None]
         planted[:, start + 1:done + 1] = planted[:, start + 1:done + 1] * (1.0 - fade) + feet[:, :carried] * fade

@@ -63,14 +63,12 @@ def test_a_300_frame_shot_has_no_seams_and_curves_are_followed_within_a_centimet
     motion = job.result.motion  # (3, 300, 17, 3) world, scene rate
     speed = np.linalg.norm(np.diff(motion, axis=1), axis=-1).mean(axis=-1)  # (3, 299) mean joint step
     jump = np.abs(np.diff(speed, axis=1))  # change of speed from frame to frame
-    window = inference.model().frames
-    model_frames = generation.model_frames(len(job.request.frames), job.request.fps)
-    joins_model = np.arange(window, model_frames, window - generation.WINDOW_OVERLAP)
-    joins = np.round(joins_model * 24 / 30).astype(int)
-    at_joins = jump[:, np.clip(joins - 1, 0, jump.shape[1] - 1)].mean()
+    joins = np.array(generation.window_joins(300, 24, inference.model().frames))  # each cross-fade's first and last frame
+    near = np.clip(joins[:, None] - 2 + np.arange(3), 0, jump.shape[1] - 1)  # (joins, 3): the frame either side too
+    at_joins = jump[:, near].max(axis=-1).mean()
     print(f"300 frames: speed change at joins {at_joins * 1000:.2f} mm/frame vs {jump.mean() * 1000:.2f} overall "
           f"(95th percentile {np.percentile(jump, 95) * 1000:.2f})")
-    assert len(joins) >= 4
+    assert len(joins) >= 8
     assert at_joins < np.percentile(jump, 95)
     report = pipeline.finish(job, rig)
     print("curve error per variant where reachable (cm):", [round(100 * e, 2) for e in report.curve_error_m],
