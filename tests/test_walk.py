@@ -9,7 +9,8 @@ import pytest
 import blender_rigs
 import shots
 from model_runtime import animation_quality as quality
-from model_runtime import footsteps
+from model_runtime import footsteps, generation
+from model_runtime.model import ModelConfig
 from trajevae_addon import api
 
 FPS = 30
@@ -54,24 +55,30 @@ def rigify(scene):
 def test_a_4_m_floor_path_is_walked_in_steps_on_rigify(scene, rigify):
     """Issue 17's targets for a 4 m path over 120 frames: steps in turn (captured walks: 3-4 per foot;
     this rig's legs are a quarter longer than the model's people, so its strides are too: 5-8 steps
-    in all, 2-4 per foot), planted toes sliding at most 0.2 m/s, the hips on the path and at least
-    0.8 of their standing height (the bench's mean: 0.87), no foot through the floor. Before the
+    in all, 2-4 per foot), planted toes sliding at most 0.2 m/s, the hips within their sway of the
+    path and at least 0.85 of their standing height, no foot through the floor. Before the
     steps were planned (``footsteps``) the model's feet glided: planted toes 0.7-1.3 m/s, hips down
     to 0.6."""
     rows = _figures(*_walk(scene, rigify, shots.walk, 120))
     for row in rows:
         assert all(2 <= count <= 4 for count in row["steps"]) and 5 <= sum(row["steps"]) <= 8
-        assert row["planted"] <= 0.2 and row["away"] <= SWAY_M and row["sink"] <= 0.01 and row["hips"] >= 0.8
+        assert row["planted"] <= 0.2 and row["away"] <= SWAY_M and row["sink"] <= 0.01 and row["hips"] >= 0.85
 
 
 def test_a_10_m_walk_keeps_stepping_to_its_end(scene):
     """10 m over 300 frames, chained model windows: the same stride all the way (8-9 steps per foot),
-    planted toes still, the hips up, the torso upright; before, the feet stopped reaching the floor
-    after 3 s, and carried whole from window to window the torso leaned 17-46 degrees."""
-    rows = _figures(*_walk(scene, blender_rigs.mannequin_rig(scene), shots.long_walk, 300))
-    for row in rows:
-        assert all(7 <= count <= 10 for count in row["steps"])
-        assert row["planted"] <= 0.2 and row["sink"] <= 0.01 and row["hips"] >= 0.8 and row["lean"] <= 20.0
+    planted toes still, the hips up, the torso upright, and no seam where windows meet (accelerations
+    there on average no higher than elsewhere; the worst frame near a join may be a heel strike that
+    falls there); before, the feet stopped reaching the floor after 3 s, and carried whole from
+    window to window the torso leaned 17-46 degrees."""
+    played, path, floor = _walk(scene, blender_rigs.mannequin_rig(scene), shots.long_walk, 300)
+    rows = _figures(played, path, floor)
+    joins = generation.window_joins(300, FPS, ModelConfig().frames)
+    for row, (joints, _) in zip(rows, played):
+        worst, mean = quality.seam(joints, FPS, joins)
+        print(f"seam: worst {worst:.2f}, mean {mean:.2f}")
+        assert all(7 <= count <= 10 for count in row["steps"]) and worst <= 1.2 and mean <= 1.1
+        assert row["planted"] <= 0.2 and row["sink"] <= 0.01 and row["hips"] >= 0.85 and row["lean"] <= 20.0
 
 
 def test_the_body_faces_along_a_quarter_circle(scene):
