@@ -2,7 +2,8 @@
 
 Two uses. ``Stepping`` times a foot path drawn on the floor without drawing
 times (the foot plants and swings along it). ``planned_feet`` plans both feet
-under a ground path of the hips, rolling heel to toe: given only the hips'
+under a ground path of the hips (each variant in its own ``Gait``: timing, arm
+swing, lean; the hips ``swayed`` over the feet), rolling heel to toe: given only the hips'
 path, the model's feet glide along it at the hips' speed (ankles lifted 2-4 cm,
 planted ankles at 0.8 m/s); given feet that step, it completes the walking or
 running body around them. Stride lengths and
@@ -307,8 +308,8 @@ def variant_gaits(count, rng):
     and eases in and out spread evenly over STRIDE_SPREAD, DELAY_SPREAD, ARM_SWING_SPREAD,
     LEAN_SPREAD and EASE_SPREAD, each in its own random order, every other variant leading with
     the other foot, so the variants differ in timing, arm swing and posture, not only in what the
-    model adds above the feet (5 variants of a 4 m walk as the model draws them: 0.03 m apart in
-    one gait, 0.06 m in their own steps)."""
+    model adds above the feet (5 variants of a 4 m walk, as played: 0.03 m apart in one gait, 0.06
+    in their own steps, 0.10 in their own gaits, their hips swaying)."""
     if count == 1:
         return [Gait()]
     spreads = (STRIDE_SPREAD, DELAY_SPREAD, ARM_SWING_SPREAD, LEAN_SPREAD, EASE_SPREAD, EASE_SPREAD)

@@ -193,9 +193,9 @@ def model_input(request):
         mask[:, J["Hip"]] = axes["Hip"]
         targets["Hip"] = waypoint_path(request, waypoints, len(frames) - 1, len(frames) - 1)
     initial = placement.to_model(request.start_joints)
-    walks = planned_walks(request, placement, initial, axes, keyed, waypoints, steps, span)
-    if walks is not None:  # the model completes each variant's walking body around its planned steps
-        hips, walks = walks
+    planned, walks = planned_walks(request, placement, initial, axes, keyed, waypoints, steps, span), None
+    if planned is not None:  # the model completes each variant's walking body around its planned steps
+        hips, walks = planned
         trajectories = np.repeat(trajectories[None], request.count, axis=0)
         trajectories[:, :, J["Hip"], :2] = placement.to_model(hips[:, 1:])[..., :2]
         trajectories[:, :, indices(FEET)], mask[:, indices(FEET)] = walks.ankles[:, 1:], 1.0
