@@ -303,17 +303,22 @@ def swayed(path, feet, fps):
     return out
 
 
-def variant_gaits(count, rng):
+def variant_gaits(count, rng, diversity=1.0):
     """A ``Gait`` for each of ``count`` variants of a walk: strides, first lifts, arm swings, leans
     and eases in and out spread evenly over STRIDE_SPREAD, DELAY_SPREAD, ARM_SWING_SPREAD,
     LEAN_SPREAD and EASE_SPREAD, each in its own random order, every other variant leading with
     the other foot, so the variants differ in timing, arm swing and posture, not only in what the
     model adds above the feet (5 variants of a 4 m walk, as played: 0.03 m apart in one gait, 0.06
-    in their own steps, 0.10 in their own gaits, their hips swaying)."""
-    if count == 1:
-        return [Gait()]
+    in their own steps, 0.10 in their own gaits, their hips swaying). ``diversity`` (the request's,
+    0 to 2) narrows the spreads toward the plain ``Gait`` below 1: at 0 every variant walks alike."""
+    share = min(max(diversity, 0.0), 1.0)
+    if count == 1 or share == 0.0:
+        return [Gait()] * count
+    plain = Gait()
     spreads = (STRIDE_SPREAD, DELAY_SPREAD, ARM_SWING_SPREAD, LEAN_SPREAD, EASE_SPREAD, EASE_SPREAD)
-    drawn = np.stack([rng.permutation(np.linspace(*spread, count)) for spread in spreads], axis=1)
+    centres = (plain.stride, plain.delay, plain.arm_swing, plain.lean, plain.ease_in, plain.ease_out)
+    drawn = np.stack([centre + share * (rng.permutation(np.linspace(*spread, count)) - centre)
+                      for spread, centre in zip(spreads, centres)], axis=1)
     return [Gait(float(stride), float(delay), bool(index % 2), *map(float, style))
             for index, (stride, delay, *style) in enumerate(drawn)]
 

@@ -214,7 +214,7 @@ def planned_walks(request, placement, initial, axes, keyed, waypoints, steps, sp
     if not ground or any(foot in axes or any(foot in joints for joints in keyed.values()) for foot in FEET):
         return None
     foot = _foot_length(request, placement)
-    gaits = footsteps.variant_gaits(request.count, np.random.default_rng(request.seed))
+    gaits = footsteps.variant_gaits(request.count, np.random.default_rng(request.seed), request.diversity)
     walks = []
     for gait in gaits:
         if waypoints is None:

@@ -85,6 +85,12 @@ def test_no_walk_no_steps_and_variants_walk_in_their_own_gaits(standing):
     print(f"ankles of 5 gaits apart: {min(apart):.3f} to {max(apart):.3f} m, mean {np.mean(apart):.3f}")
     assert min(apart) > 0.02 and np.mean(apart) > 0.1
     assert footsteps.variant_gaits(1, np.random.default_rng(0)) == [footsteps.Gait()]
+    assert footsteps.variant_gaits(5, np.random.default_rng(0), diversity=0.0) == [footsteps.Gait()] * 5
+    narrow = footsteps.variant_gaits(5, np.random.default_rng(0), diversity=0.5)
+    for part in ("stride", "arm_swing", "lean", "ease_in"):  # half as far from the plain gait, in the same order
+        plain = getattr(footsteps.Gait(), part)
+        np.testing.assert_allclose([getattr(g, part) - plain for g in narrow],
+                                   [0.5 * (getattr(g, part) - plain) for g in gaits], atol=1e-12)
 
 
 def test_the_model_walks_each_variants_own_steps_for_10_s_without_folding(standing):
