@@ -106,8 +106,8 @@ def anchored(poses, initial):
     offsets = np.broadcast_to(initial[upper] - initial[root], (len(poses), len(upper), 3))  # (B, U, 3)
     out[:, upper] = poses[:, root, None] + rotate_about_z(offsets, _facing_angle(poses) - _facing_angle(initial))
     for shoulder, elbow, wrist in LIMBS[2:]:
-        for joint, parent in ((elbow, shoulder), (wrist, elbow)):
-            out[:, JOINT_INDEX[joint]] = out[:, JOINT_INDEX[parent]] + poses[:, JOINT_INDEX[joint]] - poses[:, JOINT_INDEX[parent]]
+        for joint, parent in ((JOINT_INDEX[elbow], JOINT_INDEX[shoulder]), (JOINT_INDEX[wrist], JOINT_INDEX[elbow])):
+            out[:, joint] = out[:, parent] + poses[:, joint] - poses[:, parent]
     raised = indices(UPPER_BODY + ("Hip", "RHip", "LHip"))
     out[:, raised, 2] += (initial[root, 2] - poses[:, root, 2])[:, None]
     return out

@@ -319,12 +319,12 @@ def _limb(rig, targets, parent, upper, lower, end, heading, fixed, pitch=None):
     size = np.hypot(bend_x, bend_y)
     limit = np.radians(MAX_BEND_TURN["leg" if end.endswith("Foot") else "arm"])
     angle = np.arctan2(bend_y, bend_x)
-    low = high = np.full(len(targets), limit)
+    below = above = np.full(len(targets), limit)  # the turn's range: -below to above
     if end.endswith("Foot"):  # turned toward the other hip is inward
         other = next(leg[0] for leg in LIMBS[:2] if leg[0] != upper)
         inward = np.sum(side * (parent[:, :3, :3] @ (start[J[other]] - start[J[upper]])), axis=-1) > 0.0
-        high = np.where(inward, np.radians(KNEE_INWARD_DEG), limit)
-        low = np.where(inward, limit, np.radians(KNEE_INWARD_DEG))
+        above = np.where(inward, np.radians(KNEE_INWARD_DEG), limit)
+        below = np.where(inward, limit, np.radians(KNEE_INWARD_DEG))
     behind = np.clip((np.pi - np.abs(angle)) / (0.5 * np.pi), 0.0, 1.0)  # a bend generated backwards counts less
     # A keyed bend is taken continuous in time (one wrapping from +180 to -180 degrees while the
     # key's weight eased out swung an elbow 8 cm in a frame), and only as far as the keyed limb is
@@ -332,7 +332,7 @@ def _limb(rig, targets, parent, upper, lower, end, heading, fixed, pitch=None):
     keyed = np.unwrap(angle)
     keyed -= 2.0 * np.pi * np.round(np.median(keyed) / (2.0 * np.pi))
     as_keyed = fixed * np.clip(size / (KEYED_BEND_TRUST * first), 0.0, 1.0)
-    turn = as_keyed * keyed + (1.0 - as_keyed) * np.clip(angle, -low, high) * behind * size / (
+    turn = as_keyed * keyed + (1.0 - as_keyed) * np.clip(angle, -below, above) * behind * size / (
         size + POLE_PRIOR * first)
     pole = np.cos(turn)[:, None] * own_bend + np.sin(turn)[:, None] * side
     cos = (first ** 2 + reach ** 2 - second ** 2) / (2.0 * first * reach)

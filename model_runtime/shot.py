@@ -385,8 +385,9 @@ def run(request, model, sampler=None, progress=None, given=None):
         raise InputError("the model returned motion that is not a number for this input; nothing was written")
     followed = {joint: path for joint, path in given.targets.items() if given.axes[joint].all()}
     pinned = cleanup.pinned_joints(frames, followed, given.keyed, request.fps)  # a ground path's hips find their height
+    # the rig's own pose first: the hips held as at the start, the legs bent to LEG_REACH after it
     start = 1.0 - smoothstep(np.arange(frames) / max(cleanup.START_EASE_S * request.fps, 1.0))
-    pinned[:, J["Hip"]] = np.maximum(pinned[:, J["Hip"]], start)  # the rig's own pose first: legs bend to LEG_REACH after
+    pinned[:, J["Hip"]] = np.maximum(pinned[:, J["Hip"]], start)
     turns = turns - _yaw(request.armature_to_world)[None, :, None]  # the feet's turns in armature space
     world_scale = np.abs(np.linalg.det(request.armature_to_world[:, :3, :3])) ** (1.0 / 3.0)  # (F or 1,)
     world_to_armature = np.linalg.inv(request.armature_to_world)
