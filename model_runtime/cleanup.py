@@ -20,7 +20,7 @@ from . import footsteps
 from .filters import runs, smooth, smoothstep, window_max, window_min
 from .retarget import steady_across
 from .rotations import turned
-from .skeleton import FEET, JOINT_INDEX, LIMBS, UPPER_BODY, facing, indices, limb_length
+from .skeleton import FEET, JOINT_INDEX, LIMBS, UPPER_BODY, facing, indices, limb_length, shortest_leg
 
 J = JOINT_INDEX
 # The ground under the body: the lower ankle's height opened (lowest, then highest of the lowest)
@@ -218,7 +218,7 @@ def without_slide(motion, fps, standing, pinned, initial, targets, predicted, st
         distance = np.linalg.norm(gap, axis=-1)
         back += gap * np.clip(1.0 - share * limb_length(initial, limb) / np.maximum(distance, 1e-9), 0.0,
                               None)[..., None]
-    legs = min(limb_length(initial, leg) for leg in LIMBS[:2])
+    legs = shortest_leg(initial)
     room = motion[..., indices(FEET), 2].min(-1) + STAND_SHARE * legs - motion[..., J["Hip"], 2]
     back[..., 2] = np.minimum(back[..., 2], np.maximum(room, 0.0))  # (V, F): how far the hips can still rise
     back = np.swapaxes(smooth(np.swapaxes(back, 1, 2), REACH_EASE_S * fps), 1, 2)
@@ -384,10 +384,16 @@ def upright(motion, initial, fps):
         return motion
     axis = np.cross(steady, [0.0, 0.0, 1.0])  # horizontal: turning about it raises the torso
     axis /= np.maximum(np.linalg.norm(axis, axis=-1, keepdims=True), 1e-9)
+    return _upper_body_turned(motion, axis, turn)
+
+
+def _upper_body_turned(motion, axis, angle):
+    """Motion (V, F, 17, 3) with everything above the hips turned about them by ``angle`` (V, F)
+    radians about ``axis`` (V, F, 3), unit."""
     out = motion.copy()
     above = indices(UPPER_BODY)
-    arm = motion[:, :, above] - motion[:, :, J["Hip"]][:, :, None]  # (V, F, A, 3)
-    out[:, :, above] = motion[:, :, J["Hip"]][:, :, None] + turned(arm, axis, turn)
+    hips = motion[..., J["Hip"], None, :]
+    out[..., above, :] = hips + turned(motion[..., above, :] - hips, axis, angle)
     return out
 
 
@@ -396,11 +402,7 @@ def leaning_into_the_walk(motion, leans, fps):
     degrees as far as the hips walk (``footsteps.walking_share``)."""
     walking = smooth(footsteps.walking_share(motion[..., J["Hip"], :], fps), LEAN_SMOOTHING_S * fps)  # (V, F)
     across = np.cross(facing(motion), [0.0, 0.0, 1.0])  # turning the other way about it leans forward
-    above = indices(UPPER_BODY)
-    hips = motion[..., J["Hip"], None, :]
-    out = motion.copy()
-    out[..., above, :] = hips + turned(motion[..., above, :] - hips, across, -np.radians(leans)[:, None] * walking)
-    return out
+    return _upper_body_turned(motion, across, -np.radians(leans)[:, None] * walking)
 
 
 def swinging_arms(motion, swings, fps, initial, free):
@@ -410,7 +412,7 @@ def swinging_arms(motion, swings, fps, initial, free):
     from the start pose as ``_eased_in``)."""
     forward = facing(motion)  # (V, F, 3)
     feet = motion[..., indices(FEET), :]
-    legs = min(limb_length(initial, leg) for leg in LIMBS[:2])
+    legs = shortest_leg(initial)
     apart = smooth(((feet[..., 1, :] - feet[..., 0, :]) * forward).sum(-1), ARM_SMOOTHING_S * fps) / legs
     across = np.cross(forward, [0.0, 0.0, 1.0])  # turning about it carries a hanging arm forward
     out = motion.copy()
@@ -433,7 +435,7 @@ def hips_up(motion, initial, fps, standing):
     floor ``standing`` (see HIPS_KEPT); the ankles stay, the knees rise half as far."""
     height = smooth(motion[..., J["Hip"], 2], LEAN_SMOOTHING_S * fps) - standing  # (V, F)
     lift = (1.0 - HIPS_KEPT) * np.clip(HIPS_FREE_SHARE * (initial[J["Hip"], 2] - standing) - height, 0.0, None)
-    legs = min(limb_length(initial, leg) for leg in LIMBS[:2])
+    legs = shortest_leg(initial)
     ankles = motion[..., indices(FEET), :]
     reach = np.sqrt(np.maximum((STAND_SHARE * legs) ** 2 - np.sum(  # the hips' highest over the farther ankle
         (ankles[..., :2] - motion[..., None, J["Hip"], :2]) ** 2, axis=-1), 0.0)) + ankles[..., 2]

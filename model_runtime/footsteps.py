@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .filters import runs, smooth, smoothstep
-from .skeleton import FEET, JOINT_INDEX, LIMBS, limb_length
+from .skeleton import FEET, JOINT_INDEX, shortest_leg
 
 J = JOINT_INDEX
 
@@ -198,7 +198,7 @@ def planned_feet(hips, initial, fps, gait=None, foot=FOOT_M):
     phase = gait_phase(speed, fps, gait)
     ankles = initial[[J[foot] for foot in FEET]].astype(np.float64)
     floor_height = ankles[:, 2].min()
-    longest = FARTHEST_LANDING * min(limb_length(initial, leg) for leg in LIMBS[:2])
+    longest = FARTHEST_LANDING * shortest_leg(initial)
     first = int(np.argmin((ankles[:, :2] - hips[0]) @ forward[0])) ^ int(gait.other_foot_first)
     widths = np.clip(np.abs((ankles[:, :2] - hips[0]) @ left[0]), *HALF_WIDTH_M) * np.array([-1.0, 1.0])
     strides = phase[:, None] - np.where(np.arange(2) == first, 0.0, 0.5)  # (F, 2): each foot's own strides

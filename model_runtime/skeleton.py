@@ -36,6 +36,11 @@ def limb_length(pose, chain):
     return sum(float(np.linalg.norm(pose[JOINT_INDEX[b]] - pose[JOINT_INDEX[a]])) for a, b in zip(chain, chain[1:]))
 
 
+def shortest_leg(pose):
+    """The shorter leg's hip-knee-ankle length in a pose (17, 3): how far both legs reach."""
+    return min(limb_length(pose, leg) for leg in LIMBS[:2])
+
+
 LOWER_BODY = ("Hip", "RHip", "RKnee", "RFoot", "LHip", "LKnee", "LFoot")
 UPPER_BODY = tuple(name for name in JOINT_NAMES if name not in LOWER_BODY)
 FEET = ("RFoot", "LFoot")
