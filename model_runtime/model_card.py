@@ -66,6 +66,10 @@ def render(meta, evaluation=None, before=None, folder=weights.ASSETS):
     paths = " ".join(map(_shown, data["paths"]))
     init = meta.get("init")
     fine_tuned = "" if init is None else f"\nFine-tuned from {init}."
+    if meta.get("second_stage_from"):
+        fine_tuned += (f"\nThe second stage was trained alone (`--second-stage-from {meta['second_stage_from']}`) on the"
+                       " first stage of the weights then there; a whole run trains the same second stage on its own"
+                       " first stage.")
     previous = "" if before is None else f"""
 ### The previous model, measured the same way
 {before.get('label', 'Before')}: {before['windows']} windows, K = {before.get('samples', 50)}, run in {before['seconds']:.0f} s.
@@ -130,7 +134,11 @@ Then the second stage: the completion stage alone ({config['completion_layers']}
 {train['completion_steps']} steps (lr {train['completion_learning_rate']}, warm-up then one cosine decay), from the
 first stage's best validated weights, on their frozen decodes of posterior samples and, for
 {train['completion_mean_share']:.0%} of each batch, of the prior mean (squared error of the root and of the
-body relative to it, plus the realism terms). Best checkpoint at step {meta['step']} after
+body relative to it, plus the realism terms), and of one prior draw per window, which answers
+for its squared displacement ({train.get('completion_draw_weight', 0.0)} x), that displacement's squared
+frame-to-frame acceleration ({train.get('completion_draw_smoothness', 0.0)} x) and the realism terms but foot sliding
+(the product's foot lock holds planted feet), so the stage fits draws to what is given without
+pulling them together. Best checkpoint at step {meta['step']} after
 {meta['training_minutes']:.0f} minutes in {meta['processes']} process(es) ({meta['first_stage_minutes']:.0f} for the first stage);
 validation best-of-10 ADE {meta['validation_ade_m']:.4f} m.
 

@@ -165,6 +165,10 @@ def test_second_stage_scores_the_root_apart_from_the_body():
 
 
 def test_training_runs_checkpoints_resumes_and_its_second_stage_depends_only_on_the_first(tmp_path):
+    """A run resumes into its second stage, which changes the completion stage alone; that second
+    stage is the same from the first stage's saved weights (``--init``, ``--steps 0``) and from a
+    whole model holding that first stage (``--second-stage-from``: its completion stage trained
+    again from the seeded start)."""
     out, checkpoint = tmp_path / "weights", tmp_path / "run.pt"
     common = ["--out", str(out), "--checkpoint", str(checkpoint), "--batch", "8", "--completion-steps", "0"]
     assert train.main(["--steps", "2", "--fresh"] + common) == 0
@@ -183,6 +187,13 @@ def test_training_runs_checkpoints_resumes_and_its_second_stage_depends_only_on_
     assert train.main(["--init", str(first_stage), "--steps", "0", "--completion-steps", "2", "--batch", "8",
                        "--out", str(tmp_path / "again"), "--checkpoint", str(again)]) == 0
     for name, value in torch.load(again, weights_only=True)["model"].items():
+        torch.testing.assert_close(value, resumed["model"][name])
+    whole = tmp_path / "whole.npz"  # that first stage with a trained completion stage: the second stage again
+    shutil.copy(out / weights.MODEL_FILE, whole)
+    alone = tmp_path / "alone.pt"
+    assert train.main(["--second-stage-from", str(whole), "--steps", "2", "--completion-steps", "2", "--batch", "8",
+                       "--out", str(tmp_path / "alone"), "--checkpoint", str(alone)]) == 0
+    for name, value in torch.load(alone, weights_only=True)["model"].items():
         torch.testing.assert_close(value, resumed["model"][name])
 
 

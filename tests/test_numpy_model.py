@@ -9,9 +9,9 @@ from model_runtime.numpy_model import NumpySampler, NumpyTrajeVAE
 from model_runtime.sampler import DiverseSampler, SamplerConfig
 
 
-def _condition(all_clips):
+def _condition(all_clips, clips=2, count=3):
     from model_runtime.data import dataset
-    windows = dataset.windows(all_clips[:2], future=60, stride=45)[:3]
+    windows = dataset.windows(all_clips[:clips], future=60, stride=45)[:count]
     mask = np.broadcast_to(masks.evaluation_mask(3, 60), (len(windows), 60, 17)).astype(np.float32)
     return windows[:, 0], windows[:, 1:] * mask[..., None], mask
 
@@ -68,16 +68,17 @@ def test_numpy_sampler_matches_torch(tmp_path, all_clips):
 
 
 def test_with_curves_the_variants_follow_them_closer_and_stretch_less_than_plain_draws(all_clips):
-    """The shipped model, three curves: variants are screened from a doubled pool, so the joints
-    under the curves stray less from them than in plain prior draws, and their bones stretch no
-    more than 10 % further (0.0125 against 0.0120 m: the variants come through the completion
-    stage, which now stretches a little, the plain draws as decoded)."""
+    """The shipped model, three curves, 24 windows: variants are screened from a doubled pool, so
+    the joints under the curves stray less from them than in plain prior draws, and their bones
+    stretch no more than 10 % further (0.0142 against 0.0135 m: the variants come through the
+    completion stage, which fits the body to the given joints pinned while these are returned as
+    decoded, the plain draws as decoded; 3 windows measured 1.04-1.11x, too few to judge by)."""
     model = NumpyTrajeVAE(weights.MODEL_WEIGHTS)
-    initial, trajectories, mask = _condition(all_clips)
+    initial, trajectories, mask = _condition(all_clips, clips=12, count=24)
     variants, _ = model.sample(initial, trajectories, mask, 10, np.random.default_rng(0), keep_given=False)
-    assert variants.shape == (3, 10, 60, 17, 3)
+    assert variants.shape == (24, 10, 60, 17, 3)
     mean, log_var, encoded = model.prior(initial, trajectories, mask)
-    noise = np.random.default_rng(1).standard_normal((3, 10) + mean.shape[1:]).astype(np.float32)
+    noise = np.random.default_rng(1).standard_normal((24, 10) + mean.shape[1:]).astype(np.float32)
     z = (mean[:, None] + np.exp(0.5 * log_var)[:, None] * noise).reshape(-1, *mean.shape[1:])
     plain = model.decode(z, tuple(np.repeat(part, 10, axis=0) for part in encoded))[0].reshape(variants.shape)
 
