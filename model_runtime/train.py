@@ -332,8 +332,9 @@ def main(argv=None):
     dataset.add_data_arguments(parser)
     parser.add_argument("--out", default=str(weights.ASSETS),
                         help=f"weights folder: {weights.MODEL_FILE}, {weights.LIMITS_FILE} and {weights.CARD_FILE} go here")
-    parser.add_argument("--init", help="weights folder (or its .npz) to fine-tune from")
-    parser.add_argument("--second-stage-from", metavar="WEIGHTS",
+    start = parser.add_mutually_exclusive_group()
+    start.add_argument("--init", help="weights folder (or its .npz) to fine-tune from")
+    start.add_argument("--second-stage-from", metavar="WEIGHTS",
                         help="weights folder (or its .npz) whose first stage to keep: train the second stage "
                              "alone, as a whole run with that first stage would")
     parser.add_argument("--steps", type=int, default=TrainConfig.steps, help="first-stage steps")
