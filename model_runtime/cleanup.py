@@ -20,7 +20,8 @@ from . import footsteps
 from .filters import runs, smooth, smoothstep, window_max, window_min
 from .retarget import steady_across
 from .rotations import turned
-from .skeleton import FEET, JOINT_INDEX, LIMBS, UPPER_BODY, facing, indices, limb_length, shortest_leg
+from .skeleton import (FEET, JOINT_INDEX, LIMBS, UPPER_BODY, facing, indices, limb_length, lower_ankle_height,
+                       shortest_leg)
 
 J = JOINT_INDEX
 # The ground under the body: the lower ankle's height opened (lowest, then highest of the lowest)
@@ -496,7 +497,7 @@ def tidy(motion, fps, initial, targets, axes, keyed, predicted, walks=None):
     faces along each variant's route, its ankles take the planned steps (the model's own feet land
     up to 0.4 m short of them) and it walks in its gait, leaning into the walk and swinging the
     arms free of curves and keys against the legs."""
-    standing = min(initial[J[foot], 2] for foot in FEET)
+    standing = lower_ankle_height(initial)
     on_curves = pinned_joints(motion.shape[1], targets, {})  # keys ease in after the feet are planted
     motion = carried_by_hips(motion, targets, axes)
     if "Hip" in targets and not axes["Hip"][2]:  # a ground path: walk facing along it

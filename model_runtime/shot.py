@@ -27,7 +27,7 @@ import numpy as np
 
 from . import cleanup, footsteps, generation, retarget
 from .filters import smoothstep
-from .skeleton import FEET, JOINT_INDEX, NUM_JOINTS, indices
+from .skeleton import FEET, JOINT_INDEX, NUM_JOINTS, indices, lower_ankle_height
 
 J = JOINT_INDEX
 
@@ -321,7 +321,7 @@ def check_reach(request, given):
     body as the model sees it (rigs outside the trained size are scaled to it) and are said in
     scene metres."""
     to_body = given.placement.scale / request.metres_per_unit  # scene metres -> the model's metres
-    feet = min(request.start_joints[J["LFoot"]][2], request.start_joints[J["RFoot"]][2])
+    feet = lower_ankle_height(request.start_joints)
     seconds = request.seconds
     problems = []
     for joint, paths in given.targets.items():
@@ -376,7 +376,7 @@ def run(request, model, sampler=None, progress=None, given=None):
     scene_rate, contacts, turns = cleanup.tidy(scene_rate, request.fps, given.initial, targets, given.axes,
                                                given.keyed, planted, walks)
     if walks is not None:
-        ankles = scene_rate[:, :, indices(FEET), 2] - min(given.initial[J[foot], 2] for foot in FEET)
+        ankles = scene_rate[:, :, indices(FEET), 2] - lower_ankle_height(given.initial)
         pitches = footsteps.toes_down(walks.pitches, ankles, _foot_length(request, given.placement))
     report(INFERENCE_SHARE)  # a chance to stop before the retarget
     world = given.placement.to_world(scene_rate)

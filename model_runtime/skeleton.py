@@ -36,6 +36,11 @@ def limb_length(pose, chain):
     return sum(float(np.linalg.norm(pose[JOINT_INDEX[b]] - pose[JOINT_INDEX[a]])) for a, b in zip(chain, chain[1:]))
 
 
+def lower_ankle_height(pose):
+    """The lower ankle's height in a pose (17, 3): where the pose stands."""
+    return min(float(pose[JOINT_INDEX[foot], 2]) for foot in FEET)
+
+
 def shortest_leg(pose):
     """The shorter leg's hip-knee-ankle length in a pose (17, 3): how far both legs reach."""
     return min(limb_length(pose, leg) for leg in LIMBS[:2])
