@@ -32,7 +32,7 @@ class RunState:
     def resume(self, processes):
         """Load the checkpoint if there is one (rank 0 reads it, every process gets it); True when
         resumed."""
-        state = torch.load(self.path, weights_only=True) if processes.main and self.path.exists() else None
+        state = torch.load(self.path, map_location="cpu", weights_only=True) if processes.main and self.path.exists() else None
         state = processes.share(state)
         if state is None:
             return False

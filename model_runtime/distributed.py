@@ -1,6 +1,7 @@
 """Data-parallel training across processes, as torchrun starts them; one process when not.
 
-Under ``torchrun`` (RANK and WORLD_SIZE in the environment) every process runs the
+Each process trains on its GPU where there is one, else on the CPU. Under ``torchrun``
+(RANK and WORLD_SIZE in the environment) every process runs the
 same training command: gradients are averaged by DistributedDataParallel (gloo on
 CPUs, nccl on GPUs), each process draws its own windows, so the global batch is
 the per-process batch times the processes, and only rank 0 logs, validates and
@@ -22,10 +23,10 @@ class Processes:
         self.world = int(os.environ.get("WORLD_SIZE", "1"))
         self.rank = int(os.environ.get("RANK", "0"))
         self.device = torch.device("cpu")
+        if torch.cuda.is_available():
+            self.device = torch.device("cuda", int(os.environ.get("LOCAL_RANK", "0")))
+            torch.cuda.set_device(self.device)
         if self.world > 1:
-            if torch.cuda.is_available():
-                self.device = torch.device("cuda", int(os.environ.get("LOCAL_RANK", "0")))
-                torch.cuda.set_device(self.device)
             dist.init_process_group("nccl" if self.device.type == "cuda" else "gloo")
 
     @property
