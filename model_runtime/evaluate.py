@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from . import baselines, masks, metrics, realism, weights
+from . import baselines, joint_angles, masks, metrics, realism, weights
 from .data import clips, dataset
 from .sampler import prior_motions, sample_motions
 
@@ -42,8 +42,10 @@ METRICS = ("APD", "ADE", "FDE", "MMADE", "MMFDE", "traj_err", "MPD", "bone_dev",
 REALISM = ("bone_dev", "angle_out", "skating")
 
 
-def generate(method, model, neighbours, windows, mask, samples, generator, diverse_sampler=None):
-    """Motions (N, K, T, 17, 3) of one method for windows (N, 1 + T, 17, 3) under one mask (T, 17)."""
+def generate(method, model, neighbours, windows, mask, samples, generator, diverse_sampler=None, screen_limits=None):
+    """Motions (N, K, T, 17, 3) of one method for windows (N, 1 + T, 17, 3) under one mask (T, 17);
+    ``screen_limits``: the joint-angle limits the model's variants are screened with, as the add-on
+    screens them (``selection``; numpy (low, high), those of the model's weights folder)."""
     initial, future = windows[:, 0], windows[:, 1:]
     trajectories = future * masks.per_coordinate(mask)
     if method in ("trajevae", "trajevae_mean", "sampler"):
@@ -54,9 +56,9 @@ def generate(method, model, neighbours, windows, mask, samples, generator, diver
             condition = (torch.from_numpy(initial[part]), torch.from_numpy(trajectories[part]), known[part])
             with torch.no_grad():
                 if method == "sampler":
-                    motion = sample_motions(model, diverse_sampler, *condition, samples, generator)
+                    motion = sample_motions(model, diverse_sampler, *condition, samples, generator, screen_limits)
                 elif method == "trajevae":
-                    motion = prior_motions(model, *condition, samples, generator)
+                    motion = prior_motions(model, *condition, samples, generator, screen_limits)
                 else:
                     motion = model.sample(*condition, 1, generator=generator, use_mean=True)
             out.append(motion.numpy())
@@ -92,8 +94,9 @@ def realism_figures(motions, windows, limits):
 
 
 def evaluate(windows, model, neighbours, samples=50, seed=0, methods=METHODS, diverse_sampler=None,
-             progress=print, limits_path=realism.ANGLE_LIMITS, sampler_k=(0,)):
-    """{method: {k: {metric: value}}} for windows (N, 1 + T, 17, 3), and the ground truth's realism."""
+             progress=print, limits_path=realism.ANGLE_LIMITS, sampler_k=(0,), screen_limits=None):
+    """{method: {k: {metric: value}}} for windows (N, 1 + T, 17, 3), and the ground truth's realism;
+    ``limits_path`` measures, ``screen_limits`` screens (``generate``)."""
     generator = torch.Generator().manual_seed(seed)
     limits = realism.load_angle_limits(limits_path)
     groups = metrics.pseudo_truth_groups(metrics.to_protocol(windows[:, 0]))
@@ -105,7 +108,8 @@ def evaluate(windows, model, neighbours, samples=50, seed=0, methods=METHODS, di
         for method in methods:
             if method == "sampler" and k not in sampler_k:
                 continue
-            motions = generate(method, model, neighbours, windows, mask, samples, generator, diverse_sampler)
+            motions = generate(method, model, neighbours, windows, mask, samples, generator, diverse_sampler,
+                               screen_limits)
             results[method][str(k)] = score(motions, windows, mask, groups, limits)
         progress(f"k={k} done")
     truth = dict(zip(REALISM, realism_figures(windows[:, None, 1:], windows, limits)))
@@ -162,11 +166,11 @@ def main(argv=None):
     print(f"{len(windows)} windows from {len(eval_clips)} clips, K = {args.samples}", flush=True)
     say = lambda line: print(line, flush=True)
     results, truth = evaluate(windows, model, neighbours, args.samples, args.seed, METHODS, _sampler(folder), say,
-                              limits, args.sampler_k)
+                              limits, args.sampler_k, _screen_limits(folder))
     if compared:
         say("the bundled weights on the same windows:")
         bundled = evaluate(windows, weights.load_model()[0], neighbours, args.samples, args.seed, COMPARED,
-                           _sampler(weights.ASSETS), say, limits, args.sampler_k)[0]
+                           _sampler(weights.ASSETS), say, limits, args.sampler_k, _screen_limits(weights.ASSETS))[0]
         results.update({"bundled:" + method: rows for method, rows in bundled.items()})
     seconds = time.time() - started
     print(format_table(results, truth))
@@ -176,6 +180,12 @@ def main(argv=None):
             json.dump({"methods": {method: {"k": by_k} for method, by_k in results.items()}, "ground_truth": truth,
                        "windows": len(windows), "samples": args.samples, "seconds": round(seconds, 1)}, handle, indent=1)
     return 0
+
+
+def _screen_limits(folder):
+    """The joint-angle limits of a weights folder as the add-on screens with them, or None."""
+    path = Path(folder) / weights.LIMITS_FILE
+    return joint_angles.limit_arrays(joint_angles.read_limits(path)) if path.exists() else None
 
 
 def _sampler(folder):

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import selection
+from . import joint_angles, selection
 from .dct import dct_matrix
 from .masks import body_steps, per_coordinate
 from .skeleton import NUM_JOINTS
@@ -129,10 +129,14 @@ class _Weights:
 
 
 class NumpyTrajeVAE:
-    """Prior and decoder of TrajeVAE; arrays as in ``model.TrajeVAE`` (float32)."""
+    """Prior and decoder of TrajeVAE; arrays as in ``model.TrajeVAE`` (float32). ``angle_limits``:
+    (low, high) (16,) of the joint-angle limits beside the weights file (``LIMITS_FILE``, fitted on
+    its training data), which screen the candidate variants (``selection``), or None."""
 
     def __init__(self, path, remedy=REINSTALL):
         arrays, self.meta = load_arrays(path, remedy)
+        limits = Path(path).parent / LIMITS_FILE
+        self.angle_limits = joint_angles.limit_arrays(joint_angles.read_limits(limits)) if limits.exists() else None
         self.config = self.meta["config"]
         first, latent = arrays["decoder_input.0.weight"], self.config["latent"]  # split as in model.TrajeVAE.prior
         arrays["decoder_input.0.weight_latent"] = np.ascontiguousarray(first[:, :latent])
@@ -212,10 +216,11 @@ class NumpyTrajeVAE:
         if not decoded_only:  # screened as completed, with the known joints as decoded (``selection``)
             motion = self.complete(motion, initial, trajectories, mask, keep_given=False)
         if sampler is not None:
-            chosen = [selection.distinct_plausible(m, i, count, t, k)
+            chosen = [selection.distinct_plausible(m, i, count, t, k, self.angle_limits)
                       for m, i, t, k in zip(motion, initial, trajectories, mask)]
         else:
-            chosen = [selection.most_plausible(m, i, count, t, k) if s and draws > count else np.arange(count)
+            chosen = [selection.most_plausible(m, i, count, t, k, self.angle_limits) if s and draws > count
+                      else np.arange(count)
                       for m, i, t, k, s in zip(motion, initial, trajectories, mask, screened)]
         motion = np.stack([m[c] for m, c in zip(motion, chosen)])
         planted = np.stack([p[c] for p, c in zip(planted, chosen)])
@@ -291,7 +296,8 @@ class NumpySampler:
         return (prior_mean[:, None] + scale * np.exp(0.5 * prior_log_var)[:, None] * standard).astype(np.float32)
 
 
-MODEL_FILE, SAMPLER_FILE = "trajevae.npz", "sampler.npz"  # in a weights folder (as ``weights`` names them)
+# A weights folder's files (``weights`` names them too).
+MODEL_FILE, SAMPLER_FILE, LIMITS_FILE = "trajevae.npz", "sampler.npz", "angle_limits.json"
 # What a network whose arrays do not fit its configuration raises on its first run.
 _MISFIT = (KeyError, ValueError, IndexError, TypeError)
 

@@ -78,40 +78,42 @@ def in_prior_space(prior_mean, prior_log_var, mean, log_var, generator=None):
     return z.flatten(0, 1)
 
 
-def prior_motions(model, initial, trajectories, mask, count, generator=None):
+def prior_motions(model, initial, trajectories, mask, count, generator=None, limits=None):
     """``count`` prior samples per condition, completed, known joints as given: (B, count, T, J, 3).
 
     Where joints are given, the most plausible of ``selection.GIVEN_POOL_FACTOR`` x count completed
-    draws, as the add-on does; with nothing given, plain prior samples.
+    draws, as the add-on does (``limits``: the joint-angle limits it screens with, numpy (low, high));
+    with nothing given, plain prior samples.
     """
     screened = [bool(k.any()) for k in mask]
     if not any(screened):
         return model.sample(initial, trajectories, mask, count, generator=generator)
     draws = selection.GIVEN_POOL_FACTOR * count
     motion = model.sample(initial, trajectories, mask, draws, generator=generator, keep_given=False)
-    chosen = [selection.most_plausible(m, i, count, t, k) if s else np.arange(count)
+    chosen = [selection.most_plausible(m, i, count, t, k, limits) if s else np.arange(count)
               for m, i, t, k, s in zip(motion.numpy(), initial.numpy(), trajectories.numpy(), mask.numpy(), screened)]
     motion = torch.stack([m[torch.from_numpy(c)] for m, c in zip(motion, chosen)])
     return with_given_joints(motion, trajectories, mask)
 
 
-def sample_motions(model, sampler, initial, trajectories, mask, count, generator=None):
+def sample_motions(model, sampler, initial, trajectories, mask, count, generator=None, limits=None):
     """``count`` diverse motions per condition with the frozen model, completed, known joints as given:
     (B, count, T, J, 3).
 
     Distinct plausible ones from a completed pool of the sampler's and the prior's draws
-    (``selection.POOL_FACTOR`` and ``selection.PRIOR_POOL_FACTOR`` x count), as the add-on does.
+    (``selection.POOL_FACTOR`` and ``selection.PRIOR_POOL_FACTOR`` x count), as the add-on does
+    (``limits`` as for ``prior_motions``).
     """
     draws, prior_draws = selection.POOL_FACTOR * count, selection.PRIOR_POOL_FACTOR * count
     prior_mean, prior_log_var, encoded = model.prior(initial, trajectories, mask)
     z, _ = sampler.latents(prior_mean, prior_log_var, draws, generator)
-    noise = torch.randn((len(initial), prior_draws) + prior_mean.shape[1:], generator=generator)
+    noise = torch.randn((len(initial), prior_draws) + prior_mean.shape[1:], generator=generator).to(prior_mean.device)
     prior_z = prior_mean[:, None] + torch.exp(0.5 * prior_log_var)[:, None] * noise
     z = torch.cat([z.unflatten(0, (len(initial), draws)), prior_z], dim=1).flatten(0, 1)
     pool = draws + prior_draws
     motion = model.decode(z, repeat_encoded(encoded, pool))[0].view(initial.shape[0], pool, -1, *initial.shape[1:])
     motion = model.complete(motion, initial, trajectories, mask, keep_given=False)
-    chosen = [selection.distinct_plausible(m, i, count, t, k)
+    chosen = [selection.distinct_plausible(m, i, count, t, k, limits)
               for m, i, t, k in zip(motion.numpy(), initial.numpy(), trajectories.numpy(), mask.numpy())]
     motion = torch.stack([m[torch.from_numpy(c)] for m, c in zip(motion, chosen)])
     return with_given_joints(motion, trajectories, mask)

@@ -7,8 +7,9 @@ decodes a pool: ``POOL_FACTOR`` x N draws of the diverse sampler, which spread
 far, and ``PRIOR_POOL_FACTOR`` x N draws of the plain prior, which stay near the
 likely motion. The pool comes through the completion stage, with its known
 joints as decoded. It drops the ``SCREENED_SHARE`` that is least plausible
-(rigid bones stretched relative to the rest of the pool, or straying from the
-given curves and keys) and keeps N of the rest by ``typical_first_spread``: the
+(rigid bones stretched relative to the rest of the pool, straying from the
+given curves and keys, joints bent outside the limits fitted on the training
+data) and keeps N of the rest by ``typical_first_spread``: the
 widest spacing at which candidates taken from the most typical outwards still
 make N. On the validation subjects (k = 0, shipped weights, K = 10 and 50)
 that keeps the sampler's spread (minimum pairwise distance 2.3x plain
@@ -22,7 +23,7 @@ numpy only, so Blender needs no torch.
 
 import numpy as np
 
-from . import metrics
+from . import joint_angles, metrics
 from .masks import per_coordinate
 from .skeleton import rigid_bone_lengths
 
@@ -30,25 +31,31 @@ POOL_FACTOR = 5  # diverse sampler draws per variant asked for
 PRIOR_POOL_FACTOR = 5  # plain prior draws per variant added to the diverse sampler's pool
 SCREENED_SHARE = 0.25  # least plausible share of the pool dropped before selection
 GIVEN_POOL_FACTOR = 2  # prior draws per variant where joints are given (``most_plausible``)
+ANGLE_WEIGHT = 2.0  # cost of one joint angle outside its limits on every frame (a pool-median stretch costs 1)
 
 
 def _relative(values):
     return values / max(float(np.median(values)), 1e-9)
 
 
-def implausibility(candidates, initial, given=None, known=None):
+def implausibility(candidates, initial, given=None, known=None, limits=None):
     """Per candidate (P,): bone-length deviation and, where joints are given, their distance from the
-    given positions, each relative to the pool's median.
+    given positions, each relative to the pool's median; with ``limits`` (low, high) (16,), the
+    share of frames each joint angle spends outside them, summed over angles (``ANGLE_WEIGHT``).
 
     candidates (P, T, 17, 3) in metres at the model rate, as decoded (not yet pinned); initial
     (17, 3) holds the rig's bone lengths; given (T, 17, 3) and known (T, 17, 3) or (T, 17) as the
-    model's input (a joint's distance over its known coordinates).
+    model's input (a joint's distance over its known coordinates). The angles' shares are absolute,
+    not relative: a pool that keeps within the limits has a median of zero.
     """
     cost = _relative(np.abs(rigid_bone_lengths(candidates) - rigid_bone_lengths(initial)).mean(axis=(1, 2)))
     if known is not None and known.any():
         known = per_coordinate(known)
         distance = np.sqrt((np.square(candidates - given) * known).sum(-1))
         cost += _relative(distance[:, known.any(-1)].mean(axis=1))
+    if limits is not None:
+        outside = joint_angles.angle_excess(candidates, limits) > joint_angles.OFF_LIMIT_TOLERANCE  # (P, T, 16)
+        cost += ANGLE_WEIGHT * outside.mean(axis=1).sum(axis=-1)
     return cost
 
 
@@ -88,7 +95,7 @@ def typical_first_spread(candidates, count):
     return np.array(best)
 
 
-def most_plausible(candidates, initial, count, given=None, known=None):
+def most_plausible(candidates, initial, count, given=None, known=None, limits=None):
     """Indices (count,) of the ``count`` least implausible candidates (P, T, 17, 3), best first.
 
     Where joints are given, the prior's samples are drawn ``GIVEN_POOL_FACTOR`` x over and screened
@@ -96,12 +103,12 @@ def most_plausible(candidates, initial, count, given=None, known=None):
     subjects with 1-4 curves, best-of-50 FDE 4-7 mm lower (k = 3: 0.582 -> 0.575 m, measured before
     the completion stage), spread 7-9 % lower. Arguments as ``implausibility``.
     """
-    return np.argsort(implausibility(candidates, initial, given, known), kind="stable")[:count]
+    return np.argsort(implausibility(candidates, initial, given, known, limits), kind="stable")[:count]
 
 
-def distinct_plausible(candidates, initial, count, given=None, known=None):
+def distinct_plausible(candidates, initial, count, given=None, known=None, limits=None):
     """Indices (count,) into candidates (P, T, 17, 3), P >= count: the implausible share dropped,
     then ``typical_first_spread``. Arguments as ``implausibility``."""
     kept = max(count, len(candidates) - int(round(SCREENED_SHARE * len(candidates))))
-    order = most_plausible(candidates, initial, kept, given, known)
+    order = most_plausible(candidates, initial, kept, given, known, limits)
     return order[typical_first_spread(candidates[order], count)]

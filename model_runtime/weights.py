@@ -9,8 +9,8 @@ import torch
 from . import numpy_model
 
 # A weights folder: what the add-on needs, as the training commands write it (--out DIR).
-MODEL_FILE, SAMPLER_FILE = numpy_model.MODEL_FILE, numpy_model.SAMPLER_FILE
-LIMITS_FILE, CARD_FILE = "angle_limits.json", "MODEL_CARD.md"
+MODEL_FILE, SAMPLER_FILE, LIMITS_FILE = numpy_model.MODEL_FILE, numpy_model.SAMPLER_FILE, numpy_model.LIMITS_FILE
+CARD_FILE = "MODEL_CARD.md"
 ASSETS = Path(__file__).resolve().parents[1] / "assets"  # the bundled weights folder
 MODEL_WEIGHTS = ASSETS / MODEL_FILE
 SAMPLER_WEIGHTS = ASSETS / SAMPLER_FILE

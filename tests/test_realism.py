@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import torch
 
-from model_runtime import realism
+from model_runtime import joint_angles, realism
 from model_runtime.data import dataset
 from model_runtime.skeleton import JOINT_INDEX
 
@@ -45,3 +45,14 @@ def test_captured_poses_keep_within_the_angle_limits_and_backward_knees_do_not(v
     # the signed hinge tells a knee bent backwards from one bent forwards (a bare cosine of the
     # hinge axis caught 0.10 once mocap-extra's breakdance and crawls widened its range)
     assert realism.share_outside_limits(bent, limits) > 0.8
+
+
+def test_numpy_angles_are_torch_angles(validation_poses):
+    """The add-on screens its variants in numpy with the angles training uses in torch."""
+    limits = realism.load_angle_limits()
+    poses = validation_poses[:500]
+    np.testing.assert_allclose(joint_angles.joint_angle_cosines(poses),
+                               realism.joint_angle_cosines(torch.from_numpy(poses)).numpy(), atol=1e-6)
+    arrays = joint_angles.limit_arrays(joint_angles.read_limits(realism.ANGLE_LIMITS))
+    np.testing.assert_allclose(joint_angles.angle_excess(poses, arrays),
+                               realism.angle_excess(torch.from_numpy(poses), limits).numpy(), atol=1e-6)

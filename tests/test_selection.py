@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from model_runtime import metrics, selection
+from model_runtime import joint_angles, metrics, realism, selection
+from model_runtime.skeleton import JOINT_INDEX
 from model_runtime.data import dataset
 
 
@@ -52,3 +53,21 @@ def test_a_near_duplicate_and_a_stretched_body_are_not_picked(pool):
     chosen = selection.distinct_plausible(with_bad, initial, 6)
     assert len(with_bad) - 1 not in chosen  # the stretched body is screened out
     assert not {0, len(with_bad) - 2} <= set(chosen.tolist())  # never both copies
+
+
+def test_a_body_outside_the_joint_limits_is_screened_out(pool):
+    """A candidate whose left knee bends backwards on every frame (bone lengths kept) is dropped
+    where the joint-angle limits screen the pool, and kept by the same picking without them."""
+    candidates, initial = pool
+    hip, knee, foot = (JOINT_INDEX[name] for name in ("LHip", "LKnee", "LFoot"))
+    backwards = candidates[2].copy()
+    along = backwards[:, foot] - backwards[:, hip]
+    along /= np.linalg.norm(along, axis=-1, keepdims=True)
+    on_line = backwards[:, hip] + ((backwards[:, knee] - backwards[:, hip]) * along).sum(-1, keepdims=True) * along
+    backwards[:, knee] = 2.0 * on_line - backwards[:, knee]  # the knee mirrored through the hip-ankle line
+    with_bad = np.concatenate([candidates, backwards[None]])
+    limits = joint_angles.limit_arrays(joint_angles.read_limits(realism.ANGLE_LIMITS))
+    cost = selection.implausibility(with_bad, initial, limits=limits)
+    assert cost[-1] > cost[:-1].max()
+    assert len(with_bad) - 1 not in selection.most_plausible(with_bad, initial, 9, limits=limits)
+    assert len(with_bad) - 1 in selection.most_plausible(with_bad, initial, 9)
