@@ -326,14 +326,17 @@ def _limb(rig, targets, parent, upper, lower, end, heading, fixed, pitch=None):
         above = np.where(inward, np.radians(KNEE_INWARD_DEG), limit)
         below = np.where(inward, limit, np.radians(KNEE_INWARD_DEG))
     behind = np.clip((np.pi - np.abs(angle)) / (0.5 * np.pi), 0.0, 1.0)  # a bend generated backwards counts less
-    # A keyed bend is taken continuous in time (one wrapping from +180 to -180 degrees while the
-    # key's weight eased out swung an elbow 8 cm in a frame), and only as far as the keyed limb is
-    # bent at all (a straight arm's bend direction is noise that swung the elbow 5 cm in a frame).
-    keyed = np.unwrap(angle)
-    keyed -= 2.0 * np.pi * np.round(np.median(keyed) / (2.0 * np.pi))
+    own = np.clip(angle, -below, above) * behind * size / (size + POLE_PRIOR * first)
+    # A keyed bend is turned to from the limb's own the short way round, continuously in time (the
+    # two blended as plain angles once spun an elbow through 317 degrees in 5 frames before a key,
+    # and one wrapping from +180 to -180 degrees while the key's weight eased out swung an elbow 8 cm
+    # in a frame), and only as far as the keyed limb is bent at all (a straight arm's bend
+    # direction is noise that swung the elbow 5 cm in a frame).
     as_keyed = fixed * np.clip(size / (KEYED_BEND_TRUST * first), 0.0, 1.0)
-    turn = as_keyed * keyed + (1.0 - as_keyed) * np.clip(angle, -below, above) * behind * size / (
-        size + POLE_PRIOR * first)
+    to_keyed = np.unwrap(np.angle(np.exp(1j * (angle - own))))
+    if as_keyed.any():
+        to_keyed -= 2.0 * np.pi * np.round(np.average(to_keyed, weights=as_keyed) / (2.0 * np.pi))
+    turn = own + as_keyed * to_keyed
     pole = np.cos(turn)[:, None] * own_bend + np.sin(turn)[:, None] * side
     cos = (first ** 2 + reach ** 2 - second ** 2) / (2.0 * first * reach)
     middle = root + first * (cos[:, None] * along + np.sqrt(np.clip(1.0 - cos ** 2, 0.0, 1.0))[:, None] * pole)

@@ -77,14 +77,16 @@ def test_blocking_keys_are_approached_not_snapped(scene, mannequin):
     scene.frame_set(key_frame)
     keyed = blender_rigs.world_joints(mannequin)
     scene.frame_set(1)
-    for joints, toes in _played(scene, mannequin, pipeline.generate_variants(mannequin, 3, 0)):
+    for joints, toes in _played(scene, mannequin, pipeline.generate_variants(mannequin, 5, 0)):
         worst, spike = animation_quality.pops(joints, FPS)
         # every joint but the head, which no key places (the neck bone aims at it)
         missed = np.delete(np.linalg.norm(joints[key_frame - 1] - keyed, axis=-1), JOINT_INDEX["Head"]).max()
         print(f"blocking: worst acceleration {worst:.0f} m/s^2, {spike:.1f}x the median frame's; key missed by "
               f"{100 * missed:.2f} cm")
         # issue 15's 6x: the worst frames were elbows swinging where their bend direction wrapped
-        # around or the arm passed the shoulder line (``retarget._limb``), 9x before
+        # around or the arm passed the shoulder line (``retarget._limb``), 9x before; then the fifth
+        # variant's elbow spun the long way round to its keyed bend in the 5 frames before the key
+        # (7.8x, 73 m/s^2; 4.3x now)
         assert spike <= 6.0 and missed < 0.01
 
 
