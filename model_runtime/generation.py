@@ -32,6 +32,11 @@ TYPICAL_LEG_LENGTH_M = 0.81
 # Model frames shared by consecutive windows (at 30 fps); 10 left the joins at the motion's own 95th
 # percentile of speed change, 15 well inside it.
 WINDOW_OVERLAP = 15
+# Where a later window's carried frames end, the body (hips and above) keeps its horizontal speed
+# and eases into the window's own over MOMENTUM_FRAMES model frames: the model stopped a carried
+# drift dead there (a reach's body, moving 1 m/s sideways, stopped in one frame: 83 m/s^2 on the
+# elbow as played); 6 and 10 frames carried it on far enough to bend legs past their limits.
+MOMENTUM_FRAMES = 4
 
 
 def leg_length(pose):
@@ -96,6 +101,22 @@ def _window(model, initial, trajectories, mask, count, rng, diversity, sampler, 
     return motion + shift[:, None, None], planted
 
 
+def with_momentum(motion, done, hips_free):
+    """Motion (B, F, 17, 3) whose frames after ``done`` carry on the horizontal speed the hips had
+    at ``done``, the body above them moving with them, easing into their own over MOMENTUM_FRAMES
+    (the speed's change fading as 1 - smoothstep); only where ``hips_free`` (B,) (a ground path
+    gives the hips their speed)."""
+    out = motion.copy()
+    hips = JOINT_INDEX["Hip"]
+    jump = (motion[:, done, hips] - motion[:, done - 1, hips]) - (motion[:, done + 1, hips] - motion[:, done, hips])
+    change = jump * np.array([1.0, 1.0, 0.0]) * hips_free[:, None]  # (B, 3)
+    share = np.minimum(np.arange(1, motion.shape[1] - done) / MOMENTUM_FRAMES, 1.0)
+    travelled = MOMENTUM_FRAMES * (share - share ** 3 + share ** 4 / 2)  # the integral of 1 - smoothstep
+    body = indices(UPPER_BODY + ("Hip", "RHip", "LHip"))
+    out[:, done + 1:, body] += travelled[None, :, None, None] * change[:, None, None]
+    return out
+
+
 def anchored(poses, initial):
     """Poses (B, 17, 3) with the torso, neck and head as in ``initial`` (17, 3), turned about Z with
     each pose's pelvis, the arms hanging from its shoulders as they were, and the hips at the
@@ -144,7 +165,8 @@ def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, samp
     initial (17, 3); trajectories (T, 17, 3), or each motion's (count, T, 17, 3), and mask
     (T, 17, 3) or (T, 17) of the coordinates given on each frame after the initial one. The first
     window draws ``count`` latents (with the diverse sampler when given; one per motion for
-    trajectories of their own); later windows continue each motion with one prior sample.
+    trajectories of their own); later windows continue each motion with one prior sample, the
+    body keeping its speed where their carried frames end (``with_momentum``).
     ``progress(fraction)`` is called after each window (it may raise to stop the work).
     """
     window = model.frames
@@ -182,6 +204,9 @@ def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, samp
         planted[:, start + 1:done + 1] = planted[:, start + 1:done + 1] * (1.0 - fade) + feet[:, :carried] * fade
         motion[:, done + 1:start + frames + 1] = new[:, carried:frames]
         motion[:, start + 1:start + frames + 1] = with_proportions(motion[:, start + 1:start + frames + 1], initial)
+        if start > 0 and carried < frames:
+            hips_free = known[:, carried, JOINT_INDEX["Hip"], :2].max(axis=-1) == 0.0  # no ground path
+            motion[:, :start + frames + 1] = with_momentum(motion[:, :start + frames + 1], done, hips_free)
         planted[:, done + 1:start + frames + 1] = feet[:, carried:frames]
         if progress is not None:
             progress((start + frames) / total)
