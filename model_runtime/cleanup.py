@@ -295,12 +295,14 @@ def _bearing(planted, heights, free):
 
 def _lift(frames, plants, height):
     """A foot's added height (F,): an arc STEP_CLEARANCE_M high over each step between plants where
-    the foot (its own ``height`` (F,) over where it stands) does not lift by STEP_LIFT_M."""
+    the foot (its own ``height`` (F,) over where it stands) does not lift by STEP_LIFT_M. The arc
+    (sin^2) leaves and meets the floor at rest: a half sine lifted the foot off at full speed, and
+    a Rigify knee over a wave's late step took it at 53 m/s^2 and landed at 77."""
     lift = np.zeros(len(frames))
     for (_, before), (after, _) in zip(plants, plants[1:]):
         if after - before > 1 and height[before:after + 1].max() < STEP_LIFT_M:
             phase = (frames[before:after + 1] - before) / (after - before)
-            lift[before:after + 1] = STEP_CLEARANCE_M * np.sin(np.pi * phase)
+            lift[before:after + 1] = STEP_CLEARANCE_M * np.sin(np.pi * phase) ** 2
     return lift
 
 

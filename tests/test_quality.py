@@ -241,6 +241,18 @@ def test_long_shots_are_windows_that_overlap_and_a_step_at_a_join_shows_as_a_sea
     assert animation_quality.seam(stepped, FPS, joins)[0] > 3.0
 
 
+def test_a_step_cut_in_leaves_and_meets_the_floor_at_rest():
+    """The arc a foot that does not lift by itself is given between two plants: STEP_CLEARANCE_M
+    high, leaving the floor and landing with no jump in its speed (a half sine started it at
+    full speed: a 2.5 cm step in the first frame of a 10-frame swing)."""
+    frames = np.arange(40)
+    lift = cleanup._lift(frames, [(0, 10), (20, 39)], np.zeros(40))
+    assert lift[:11].max() == 0.0 and lift[20:].max() < 1e-12
+    assert lift.max() == pytest.approx(cleanup.STEP_CLEARANCE_M)
+    smooth_arc = 2.0 * np.pi ** 2 * cleanup.STEP_CLEARANCE_M / 10 ** 2  # the arc's own largest acceleration
+    assert np.abs(np.diff(lift, 2)).max() <= 1.01 * smooth_arc
+
+
 def test_a_foot_hovering_while_the_other_steps_bears_the_body():
     """The right foot steps (lifted 10 cm) while the left hovers 6 cm up, not predicted planted: the
     lower of the two bears the body on the floor, so both are never up at once (short of a jump)."""
