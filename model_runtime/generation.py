@@ -206,7 +206,7 @@ def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, samp
         motion[:, start + 1:start + frames + 1] = with_proportions(motion[:, start + 1:start + frames + 1], initial)
         if start > 0 and carried < frames:
             hips_free = known[:, carried, JOINT_INDEX["Hip"], :2].max(axis=-1) == 0.0  # no ground path
-            motion[:, :start + frames + 1] = with_momentum(motion[:, :start + frames + 1], done, hips_free)
+            motion[:, done - 1:start + frames + 1] = with_momentum(motion[:, done - 1:start + frames + 1], 1, hips_free)
         planted[:, done + 1:start + frames + 1] = feet[:, carried:frames]
         if progress is not None:
             progress((start + frames) / total)
