@@ -226,9 +226,10 @@ def _axis_angle_matrix(axis, angle):
 
 
 def _lean_to_hands(rig, targets, chest, pivot, pinned, most=MAX_LEAN_TO_HAND):
-    """The chest delta (F, 4, 4) turned about ``pivot`` (3,) (the spine bone's head), just enough for
-    a pinned hand beyond the arm's reach to come within it (as a body leans to reach), by ``most``
-    degrees at most: further, a body would step rather than fold."""
+    """The chest delta (F, 4, 4) turned about ``pivot`` (3,) (the spine bone's head; the hips' for a
+    trunk that turns as one), just enough for a pinned hand beyond the arm's reach to come within it
+    (as a body leans to reach), by ``most`` degrees at most: further, a body would step rather
+    than fold."""
     start = rig.joints
     for shoulder, elbow, wrist in LIMBS[2:]:
         reach = REACH_MARGIN * limb_length(start, (shoulder, elbow, wrist))
