@@ -100,8 +100,8 @@ def angle_excess(poses, limits):
 def read_limits(path):
     """{"names", "low", "high"} of an angle_limits.json, checked to be for ``ANGLE_NAMES``."""
     limits = json.loads(Path(path).read_text())
-    if limits["names"] != list(ANGLE_NAMES):
-        raise ValueError(f"{path} holds joint-angle limits for other angles")
+    if limits["names"] != list(ANGLE_NAMES) or not len(limits["low"]) == len(limits["high"]) == len(ANGLE_NAMES):
+        raise ValueError(f"{Path(path).name} holds joint-angle limits for other angles")
     return limits
 
 

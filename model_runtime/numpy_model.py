@@ -135,8 +135,7 @@ class NumpyTrajeVAE:
 
     def __init__(self, path, remedy=REINSTALL):
         arrays, self.meta = load_arrays(path, remedy)
-        limits = Path(path).parent / LIMITS_FILE
-        self.angle_limits = joint_angles.limit_arrays(joint_angles.read_limits(limits)) if limits.exists() else None
+        self.angle_limits = _read_limits(Path(path).parent / LIMITS_FILE, remedy)
         self.config = self.meta["config"]
         first, latent = arrays["decoder_input.0.weight"], self.config["latent"]  # split as in model.TrajeVAE.prior
         arrays["decoder_input.0.weight_latent"] = np.ascontiguousarray(first[:, :latent])
@@ -254,6 +253,18 @@ def _with_given_joints(motion, trajectories, mask):
     """As ``model.with_given_joints``: motion (B, count, T, 17, 3) with the known coordinates
     (mask (B, T, 17, 3)) set to the given positions (B, T, 17, 3)."""
     return np.where(mask[:, None] > 0, trajectories[:, None], motion)
+
+
+def _read_limits(path, remedy):
+    """(low, high) (16,) of a weights folder's joint-angle limits, None where it has none;
+    WeightsError (one sentence naming the file) where they cannot be read or are for other angles."""
+    if not path.exists():
+        return None
+    try:
+        return joint_angles.limit_arrays(joint_angles.read_limits(path))
+    except (OSError, ValueError, KeyError, TypeError) as error:
+        raise WeightsError(f"the joint-angle limits {path.name} in {path.parent} cannot be used "
+                           f"({type(error).__name__}: {error}); {remedy}") from None
 
 
 def _given_steps(initial, trajectories, mask):

@@ -82,6 +82,27 @@ def test_damaged_sampler_weights_are_one_sentence(assets, damage):
     assert not (assets / "planted").exists()
 
 
+LIMITS_DAMAGE = {
+    "not JSON": lambda path: path.write_text("<html>404 Not Found</html>"),
+    "cut in half": lambda path: path.write_text(path.read_text()[: len(path.read_text()) // 2]),
+    "other angles": lambda path: path.write_text(path.read_text().replace("right_elbow", "right_wrist")),
+    "a limit short": lambda path: path.write_text(path.read_text().replace('"low": [', '"low": [0.0, ', 1)),
+}
+
+
+@pytest.mark.parametrize("damage", LIMITS_DAMAGE)
+def test_damaged_joint_angle_limits_are_one_sentence(assets, damage):
+    """The limits beside the weights screen the variants (``selection``): damaged, they are refused
+    with the weights, not used half-read."""
+    shutil.copy(ASSETS / numpy_model.LIMITS_FILE, assets / numpy_model.LIMITS_FILE)
+    assert inference.model(assets) is not None
+    inference.release()
+    LIMITS_DAMAGE[damage](assets / numpy_model.LIMITS_FILE)
+    with pytest.raises(inference.WeightsError) as refused:
+        inference.model(assets)
+    _says(refused.value, numpy_model.LIMITS_FILE)
+
+
 def test_a_missing_sampler_is_said_in_the_report_not_silently_replaced(assets):
     (assets / inference.SAMPLER_FILE).unlink()
     assert inference.sampler(assets) is None  # generation goes on with the prior's own draws
