@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from . import baselines, joint_angles, masks, metrics, realism, weights
+from . import baselines, masks, metrics, numpy_model, realism, weights
 from .data import clips, dataset
 from .sampler import prior_motions, sample_motions
 
@@ -183,9 +183,8 @@ def main(argv=None):
 
 
 def _screen_limits(folder):
-    """The joint-angle limits of a weights folder as the add-on screens with them, or None."""
-    path = Path(folder) / weights.LIMITS_FILE
-    return joint_angles.limit_arrays(joint_angles.read_limits(path)) if path.exists() else None
+    """The joint-angle limits of a weights folder as the add-on reads and screens with them, or None."""
+    return numpy_model.read_angle_limits(Path(folder) / weights.LIMITS_FILE, weights.RESTORE)
 
 
 def _sampler(folder):

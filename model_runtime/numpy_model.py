@@ -135,7 +135,7 @@ class NumpyTrajeVAE:
 
     def __init__(self, path, remedy=REINSTALL):
         arrays, self.meta = load_arrays(path, remedy)
-        self.angle_limits = _read_limits(Path(path).parent / LIMITS_FILE, remedy)
+        self.angle_limits = read_angle_limits(Path(path).parent / LIMITS_FILE, remedy)
         self.config = self.meta["config"]
         first, latent = arrays["decoder_input.0.weight"], self.config["latent"]  # split as in model.TrajeVAE.prior
         arrays["decoder_input.0.weight_latent"] = np.ascontiguousarray(first[:, :latent])
@@ -255,7 +255,7 @@ def _with_given_joints(motion, trajectories, mask):
     return np.where(mask[:, None] > 0, trajectories[:, None], motion)
 
 
-def _read_limits(path, remedy):
+def read_angle_limits(path, remedy=REINSTALL):
     """(low, high) (16,) of a weights folder's joint-angle limits, None where it has none;
     WeightsError (one sentence naming the file) where they cannot be read or are for other angles."""
     if not path.exists():
