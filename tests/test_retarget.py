@@ -121,3 +121,27 @@ def test_the_chest_leans_so_a_pinned_hand_beyond_reach_gets_there(motion):
         pose = _forward(rest, retarget.bone_bases(rig, retarget.joint_deltas(rig, targets, mask)))
         errors[name] = np.linalg.norm(pose["LWrist"][:, :3, 3] - targets[:, wrist], axis=-1).mean()
     assert errors["free"] > 0.02 and errors["pinned"] < 0.005, errors
+
+
+def test_a_lean_toward_a_hand_at_the_arms_full_reach_changes_gently_instead_of_flickering(motion):
+    """A pinned hand hovering about the arm's full reach from the chest (1 % beyond, then 1 % short,
+    frame by frame) needs a lean that jumps by about 10 degrees between those frames; the chest's
+    lean changes by LEAN_DEG_PER_FRAME at most, still as far as each frame needs."""
+    rig, rest = _plain_rig(motion[0])
+    pose = motion[0]
+    spine, shoulder, wrist = (JOINT_INDEX[name] for name in ("Spine", "LShoulder", "LWrist"))
+    arm = pose[shoulder] - pose[spine]
+    reach = retarget.limb_length(pose, ("LShoulder", "LElbow", "LWrist"))
+    side = np.cross(arm, [0.0, 0.0, 1.0])
+    away = np.cos(np.radians(20.0)) * arm / np.linalg.norm(arm) + np.sin(np.radians(20.0)) * side / np.linalg.norm(side)
+    frames = 30
+    distance = (np.linalg.norm(arm) + reach) * np.where(np.arange(frames) % 2 == 0, 1.01, 0.99)
+    targets = np.repeat(pose[None], frames, axis=0)
+    targets[:, wrist] = pose[spine] + distance[:, None] * away
+    pinned = np.zeros(targets.shape[:2])
+    pinned[:, wrist] = 1.0
+    chest = _forward(rest, retarget.bone_bases(rig, retarget.joint_deltas(rig, targets, pinned)))["Spine"][:, :3, :3]
+    turns = [np.degrees(np.arccos(np.clip((np.trace(a.T @ b) - 1.0) / 2.0, -1.0, 1.0))) for a, b in zip(chest, chest[1:])]
+    leans = [np.degrees(np.arccos(np.clip((np.trace(c) - 1.0) / 2.0, -1.0, 1.0))) for c in chest]
+    assert max(turns) < retarget.LEAN_DEG_PER_FRAME + 0.05, turns
+    assert min(leans[5:-5]) > 15.0, leans  # as far as the frames beyond reach need (about 20 degrees)
