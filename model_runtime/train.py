@@ -38,7 +38,7 @@ import json
 import math
 import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
 import numpy as np
@@ -348,13 +348,15 @@ def main(argv=None):
     parser.add_argument("--threads", type=int, default=0, help="torch threads per process (0: torch's choice)")
     parser.add_argument("--log-every", type=int, default=50, help="steps between progress lines")
     parser.add_argument("--validate-every", type=int, default=TrainConfig.validate_every)
+    for field in fields(TrainConfig):  # the loss weights and shares, for experiments
+        if field.type is float and field.name != "learning_rate":
+            parser.add_argument("--" + field.name.replace("_", "-"), type=float, default=field.default)
     return distributed.run(_train, parser, parser.parse_args(argv))
 
 
 def _train(parser, args, processes):
-    config = TrainConfig(steps=args.steps, completion_steps=args.completion_steps, batch=args.batch,
-                         learning_rate=args.learning_rate, warmup=args.warmup, seed=args.seed,
-                         validate_every=args.validate_every)
+    config = TrainConfig(**{field.name: getattr(args, field.name) for field in fields(TrainConfig)
+                            if hasattr(args, field.name)})
     model_config = ModelConfig()
     if args.threads:
         torch.set_num_threads(args.threads)

@@ -165,14 +165,15 @@ def test_second_stage_scores_the_root_apart_from_the_body():
 
 
 def test_training_runs_checkpoints_resumes_and_its_second_stage_depends_only_on_the_first(tmp_path):
-    """A run resumes into its second stage, which changes the completion stage alone; that second
+    """A loss weight given on the command line is the run's; a run resumes into its second stage, which changes the completion stage alone; that second
     stage is the same from the first stage's saved weights (``--init``, ``--steps 0``) and from a
     whole model holding that first stage (``--second-stage-from``: its completion stage trained
     again from the seeded start)."""
     out, checkpoint = tmp_path / "weights", tmp_path / "run.pt"
     common = ["--out", str(out), "--checkpoint", str(checkpoint), "--batch", "8", "--completion-steps", "0"]
-    assert train.main(["--steps", "2", "--fresh"] + common) == 0
+    assert train.main(["--steps", "2", "--fresh", "--beta", "0.003"] + common) == 0
     assert {path.name for path in out.iterdir()} == {weights.MODEL_FILE, weights.LIMITS_FILE, weights.CARD_FILE}
+    assert weights.load_state(out / weights.MODEL_FILE)[1]["train"]["beta"] == 0.003  # a loss weight from the command
     state = torch.load(checkpoint, weights_only=True)
     assert state["step"] == 2
     first_stage = tmp_path / "first_stage.npz"
