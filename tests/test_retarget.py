@@ -42,9 +42,13 @@ def motion(all_clips):
 
 
 def test_retarget_puts_hands_and_feet_on_their_targets_with_rig_lengths(motion):
+    """Feet, and hands the artist pinned, on their targets (free hands keep their pose against the
+    rig's shoulders instead: ``test_a_free_arm_keeps_its_pose_against_the_rigs_shoulder``)."""
     rig, rest = _plain_rig(motion[0])
     targets = motion[1:]
-    bases = retarget.bone_bases(rig, retarget.joint_deltas(rig, targets))
+    pinned = np.zeros(targets.shape[:2])
+    pinned[:, [JOINT_INDEX["RWrist"], JOINT_INDEX["LWrist"]]] = 1.0
+    bases = retarget.bone_bases(rig, retarget.joint_deltas(rig, targets, pinned))
     pose = _forward(rest, bases)
     for end in ("RFoot", "LFoot", "RWrist", "LWrist"):
         error = np.linalg.norm(pose[end][:, :3, 3] - targets[:, JOINT_INDEX[end]], axis=-1)
@@ -52,7 +56,7 @@ def test_retarget_puts_hands_and_feet_on_their_targets_with_rig_lengths(motion):
     for joint in PARENTS:  # everything else close, bones never stretched
         error = np.linalg.norm(pose[joint][:, :3, 3] - targets[:, JOINT_INDEX[joint]], axis=-1)
         assert error.mean() < 0.06, joint
-    achieved = retarget.achieved_joints(rig, retarget.joint_deltas(rig, targets))
+    achieved = retarget.achieved_joints(rig, retarget.joint_deltas(rig, targets, pinned))
     for joint in PARENTS:
         np.testing.assert_allclose(achieved[:, JOINT_INDEX[joint]], pose[joint][:, :3, 3], atol=1e-6)
     thigh = np.linalg.norm(pose["RKnee"][:, :3, 3] - pose["RHip"][:, :3, 3], axis=-1)
@@ -145,3 +149,21 @@ def test_a_lean_toward_a_hand_at_the_arms_full_reach_changes_gently_instead_of_f
     leans = [np.degrees(np.arccos(np.clip((np.trace(c) - 1.0) / 2.0, -1.0, 1.0))) for c in chest]
     assert max(turns) < retarget.LEAN_DEG_PER_FRAME + 0.05, turns
     assert min(leans[5:-5]) > 15.0, leans  # as far as the frames beyond reach need (about 20 degrees)
+
+
+def test_a_free_arm_keeps_its_pose_against_the_rigs_shoulder(motion):
+    """Generated shoulders 10 cm above where the rig's chest puts them (the upper body stretched
+    up from the hips): each free hand keeps its place against the rig's shoulder, as generated against its
+    own, not its place in the scene (there a hand folded near its shoulder swung the elbow over in a
+    frame)."""
+    rig, rest = _plain_rig(motion[0])
+    targets = motion[1:].copy()
+    upper = [JOINT_INDEX[name] for name in ("Spine", "Thorax", "Neck", "Head", "LShoulder", "LElbow", "LWrist",
+                                            "RShoulder", "RElbow", "RWrist")]
+    targets[:, upper, 2] += 0.10
+    pose = _forward(rest, retarget.bone_bases(rig, retarget.joint_deltas(rig, targets, np.zeros(targets.shape[:2]))))
+    for side in "LR":
+        shoulder, wrist = pose[side + "Shoulder"][:, :3, 3], pose[side + "Wrist"][:, :3, 3]
+        generated = targets[:, JOINT_INDEX[side + "Wrist"]] - targets[:, JOINT_INDEX[side + "Shoulder"]]
+        assert np.linalg.norm(wrist - shoulder - generated, axis=-1).mean() < 0.01, side
+        assert np.linalg.norm(wrist - targets[:, JOINT_INDEX[side + "Wrist"]], axis=-1).mean() > 0.05, side
