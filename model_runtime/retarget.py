@@ -273,8 +273,9 @@ def _trunk_to_hands(rig, targets, trunk, pinned):
     chest mapped: Rigify's torso control): the trunk leaned about the hips toward a pinned hand
     beyond the arm's reach (``_lean_to_hands``, MAX_TRUNK_LEAN_TO_HAND at most), and the arms
     whose hands no curve or key holds carried with it (``_free_arms_carried``), so they keep their
-    pose against the body. Unleaned, the trunk kept the hips' turn while the model's chest leaned toward the hand:
-    a Rigify wave's hand missed its curve by up to 11 cm, the arm straight and short of it."""
+    pose against the body. Unleaned, the trunk kept the hips' turn while the model's chest leaned
+    toward the hand: a Rigify wave's hand missed its curve by up to 11 cm, the arm straight and
+    short of it."""
     leaned = _lean_to_hands(rig, targets, trunk, rig.joints[J["Hip"]], pinned, MAX_TRUNK_LEAN_TO_HAND)
     return leaned, _free_arms_carried(targets, leaned @ _rigid_inverse(trunk), pinned)
 
@@ -288,9 +289,13 @@ def _free_arm_at_its_shoulder(targets, shoulder, arm, pinned=None):
     targets = targets.copy()
     offset = shoulder - targets[:, J[arm[0]]]
     for joint in map(J.get, arm[1:]):
-        weight = 1.0 if pinned is None else ((1.0 - pinned[:, J[arm[-1]]]) * (1.0 - pinned[:, joint]))[:, None]
-        targets[:, joint] += weight * offset
+        targets[:, joint] += (1.0 if pinned is None else _free_share(pinned, arm, joint)) * offset
     return targets
+
+
+def _free_share(pinned, arm, joint):
+    """(F, 1): how free one joint of an arm is on each frame, neither it nor the arm's hand pinned."""
+    return ((1.0 - pinned[:, J[arm[-1]]]) * (1.0 - pinned[:, joint]))[:, None]
 
 
 def _free_arms_carried(targets, lean, pinned):
@@ -303,8 +308,7 @@ def _free_arms_carried(targets, lean, pinned):
     for arm in LIMBS[2:]:
         for joint in map(J.get, arm):
             carried = (lean[:, :3, :3] @ targets[:, joint, :, None])[..., 0] + lean[:, :3, 3]
-            weight = ((1.0 - pinned[:, J[arm[-1]]]) * (1.0 - pinned[:, joint]))[:, None]
-            targets[:, joint] += weight * (carried - targets[:, joint])
+            targets[:, joint] += _free_share(pinned, arm, joint) * (carried - targets[:, joint])
     return targets
 
 
