@@ -306,9 +306,10 @@ def _free_arms_carried(targets, lean, pinned):
     swung over in a frame (297 m/s^2)."""
     targets = targets.copy()
     for arm in LIMBS[2:]:
-        for joint in map(J.get, arm):
-            carried = (lean[:, :3, :3] @ targets[:, joint, :, None])[..., 0] + lean[:, :3, 3]
-            targets[:, joint] += _free_share(pinned, arm, joint) * (carried - targets[:, joint])
+        joints = [J[joint] for joint in arm]
+        carried = targets[:, joints] @ np.swapaxes(lean[:, :3, :3], 1, 2) + lean[:, None, :3, 3]
+        share = np.stack([_free_share(pinned, arm, joint) for joint in joints], axis=1)  # (F, 3, 1)
+        targets[:, joints] += share * (carried - targets[:, joints])
     return targets
 
 
