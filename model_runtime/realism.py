@@ -2,7 +2,8 @@
 
 Angles are ``joint_angles``'s cosines. Valid ranges are the 0.1 to 99.9
 percentiles over training poses (``fit_angle_limits``), which ignores a few
-capture glitches; the shipped ranges live in assets/angle_limits.json.
+capture glitches, open at a pole (``POLE_DEG``); the shipped ranges live in
+assets/angle_limits.json.
 """
 
 from pathlib import Path
@@ -15,12 +16,20 @@ from .joint_angles import ANGLE_NAMES, joint_angle_cosines
 from .skeleton import FEET, FLOOR_CONTACT_M, indices, rigid_bone_lengths
 
 ANGLE_LIMITS = Path(__file__).resolve().parents[1] / "assets" / "angle_limits.json"
+# A cosine's percentile within this many degrees of +-1 is no limit: few poses lie that close to a
+# direction (the solid angle shrinks to nothing at the pole), so the percentile there shut out a
+# 3-4 degree cone of natural poses: a crouch's thigh passing along the trunk's forward normal (hip
+# flexed 90 degrees against the trunk) counted as off the limits on 5 frames before the key.
+POLE_DEG = 5.0
 def fit_angle_limits(poses, low=0.1, high=99.9):
-    """{"names", "low", "high"} valid cosine ranges from training poses (N, 17, 3)."""
+    """{"names", "low", "high"} valid cosine ranges from training poses (N, 17, 3), open where a
+    percentile lies within POLE_DEG of a pole."""
     cosines = joint_angle_cosines(torch.as_tensor(poses, dtype=torch.float64)).numpy()
     finite = cosines[np.all(np.isfinite(cosines), axis=1)]
-    return {"names": list(ANGLE_NAMES), "low": np.percentile(finite, low, axis=0).tolist(),
-            "high": np.percentile(finite, high, axis=0).tolist()}
+    pole = np.cos(np.radians(POLE_DEG))
+    lows, highs = np.percentile(finite, low, axis=0), np.percentile(finite, high, axis=0)
+    return {"names": list(ANGLE_NAMES), "low": np.where(lows < -pole, -1.0, lows).tolist(),
+            "high": np.where(highs > pole, 1.0, highs).tolist()}
 
 
 def load_angle_limits(path=ANGLE_LIMITS):
