@@ -21,6 +21,8 @@ ANGLE_LIMITS = Path(__file__).resolve().parents[1] / "assets" / "angle_limits.js
 # 3-4 degree cone of natural poses: a crouch's thigh passing along the trunk's forward normal (hip
 # flexed 90 degrees against the trunk) counted as off the limits on 5 frames before the key.
 POLE_DEG = 5.0
+
+
 def fit_angle_limits(poses, low=0.1, high=99.9):
     """{"names", "low", "high"} valid cosine ranges from training poses (N, 17, 3), open where a
     percentile lies within POLE_DEG of a pole."""
