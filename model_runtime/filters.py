@@ -46,3 +46,12 @@ def smooth(values, sigma):
     half = int(np.ceil(3 * sigma))
     kernel = np.exp(-0.5 * (np.arange(-half, half + 1) / sigma) ** 2)
     return _windows(values, half) @ (kernel / kernel.sum())
+
+
+def rate_limited_from_above(values, rate):
+    """The least values (F,) at or above ``values`` (F,) that change by at most ``rate`` a frame:
+    each frame's value, or a neighbour's less ``rate`` per frame between them, whichever is more."""
+    steps = rate * np.arange(len(values))
+    rising = np.maximum.accumulate(values + steps) - steps
+    falling = (np.maximum.accumulate((values - steps)[::-1]) + steps[::-1])[::-1]
+    return np.maximum(rising, falling)

@@ -37,6 +37,9 @@ WINDOW_OVERLAP = 15
 # drift dead there (a reach's body, moving 1 m/s sideways, stopped in one frame: 83 m/s^2 on the
 # elbow as played); 6 and 10 frames carried it on far enough to bend legs past their limits.
 MOMENTUM_FRAMES = 4
+# The joints a later window's start raises to the initial hip height and a carried speed moves: the
+# pelvis and everything above it, the legs below the hip joints staying where they are.
+PELVIS_AND_ABOVE = indices(UPPER_BODY + ("Hip", "RHip", "LHip"))
 
 
 def leg_length(pose):
@@ -112,8 +115,7 @@ def with_momentum(motion, done, hips_free):
     change = jump * np.array([1.0, 1.0, 0.0]) * hips_free[:, None]  # (B, 3)
     share = np.minimum(np.arange(1, motion.shape[1] - done) / MOMENTUM_FRAMES, 1.0)
     travelled = MOMENTUM_FRAMES * (share - share ** 3 + share ** 4 / 2)  # the integral of 1 - smoothstep
-    body = indices(UPPER_BODY + ("Hip", "RHip", "LHip"))
-    out[:, done + 1:, body] += travelled[None, :, None, None] * change[:, None, None]
+    out[:, done + 1:, PELVIS_AND_ABOVE] += travelled[None, :, None, None] * change[:, None, None]
     return out
 
 
@@ -129,8 +131,7 @@ def anchored(poses, initial):
     for shoulder, elbow, wrist in LIMBS[2:]:
         for joint, parent in ((JOINT_INDEX[elbow], JOINT_INDEX[shoulder]), (JOINT_INDEX[wrist], JOINT_INDEX[elbow])):
             out[:, joint] = out[:, parent] + poses[:, joint] - poses[:, parent]
-    raised = indices(UPPER_BODY + ("Hip", "RHip", "LHip"))
-    out[:, raised, 2] += (initial[root, 2] - poses[:, root, 2])[:, None]
+    out[:, PELVIS_AND_ABOVE, 2] += (initial[root, 2] - poses[:, root, 2])[:, None]
     return out
 
 

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import rotations
-from .filters import smooth, window_max
+from .filters import rate_limited_from_above, smooth, window_max
 from .skeleton import JOINT_INDEX, LIMBS, limb_length
 
 J = JOINT_INDEX
@@ -253,19 +253,10 @@ def _lean_to_hands(rig, targets, chest, pivot, pinned, most=MAX_LEAN_TO_HAND):
         closest = np.arccos(np.clip((r ** 2 + d ** 2 - reach ** 2) / np.maximum(2 * r * d, 1e-12), -1.0, 1.0))
         furthest = np.minimum(between, np.radians(most))
         needed = np.clip(between - closest, 0.0, furthest) * pinned[:, J[wrist]]
-        turn = np.minimum(_rate_limited_from_above(needed, np.radians(LEAN_DEG_PER_FRAME)), furthest)
+        turn = np.minimum(rate_limited_from_above(needed, np.radians(LEAN_DEG_PER_FRAME)), furthest)
         rotation = _axis_angle_matrix(_unit(np.cross(arm, goal)), turn) @ chest[:, :3, :3]
         chest = _rigid(rotation, pivot, centre)
     return chest
-
-
-def _rate_limited_from_above(values, rate):
-    """The least values (F,) at or above ``values`` (F,) that change by at most ``rate`` a frame:
-    each frame's value, or a neighbour's less ``rate`` per frame between them, whichever is more."""
-    steps = rate * np.arange(len(values))
-    rising = np.maximum.accumulate(values + steps) - steps
-    falling = (np.maximum.accumulate((values - steps)[::-1]) + steps[::-1])[::-1]
-    return np.maximum(rising, falling)
 
 
 def _trunk_to_hands(rig, targets, trunk, pinned):

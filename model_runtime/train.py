@@ -348,15 +348,26 @@ def main(argv=None):
     parser.add_argument("--threads", type=int, default=0, help="torch threads per process (0: torch's choice)")
     parser.add_argument("--log-every", type=int, default=50, help="steps between progress lines")
     parser.add_argument("--validate-every", type=int, default=TrainConfig.validate_every)
-    for field in fields(TrainConfig):  # the loss weights and shares, for experiments
-        if field.type is float and field.name != "learning_rate":
-            parser.add_argument("--" + field.name.replace("_", "-"), type=float, default=field.default)
+    add_config_flags(parser, TrainConfig, taken=("learning_rate",))
     return distributed.run(_train, parser, parser.parse_args(argv))
 
 
+def add_config_flags(parser, config_type, taken=()):
+    """A --flag per float field of a config dataclass (loss weights, shares, margins: for experiments
+    one command reproduces), but the fields in ``taken``, which have flags of their own."""
+    for field in fields(config_type):
+        if field.type is float and field.name not in taken:
+            parser.add_argument("--" + field.name.replace("_", "-"), type=float, default=field.default)
+
+
+def config_from_flags(config_type, args):
+    """The config dataclass with every field the command line has a flag for taken from it."""
+    return config_type(**{field.name: getattr(args, field.name) for field in fields(config_type)
+                          if hasattr(args, field.name)})
+
+
 def _train(parser, args, processes):
-    config = TrainConfig(**{field.name: getattr(args, field.name) for field in fields(TrainConfig)
-                            if hasattr(args, field.name)})
+    config = config_from_flags(TrainConfig, args)
     model_config = ModelConfig()
     if args.threads:
         torch.set_num_threads(args.threads)

@@ -18,7 +18,6 @@ data-parallel under torchrun as ``train`` does (``distributed``).
 """
 
 import argparse
-import dataclasses
 import json
 import sys
 import time
@@ -33,7 +32,7 @@ from .data import clips, dataset
 from .model import parameter_count, repeat_encoded
 from .sampler import DiverseSampler, SamplerConfig, in_prior_space
 from .skeleton import rigid_bone_lengths
-from .train import WindowSampler, learning_rate
+from .train import WindowSampler, add_config_flags, config_from_flags, learning_rate
 
 @dataclass(frozen=True)
 class SamplerTrainConfig:
@@ -122,15 +121,12 @@ def main(argv=None):
     parser.add_argument("--checkpoint", help="default: one per weights folder in ~/.cache/trajevae/checkpoints")
     parser.add_argument("--fresh", action="store_true", help="ignore an existing checkpoint")
     parser.add_argument("--log-every", type=int, default=50, help="steps between progress lines")
-    for field in dataclasses.fields(SamplerTrainConfig):
-        if field.type is float:
-            parser.add_argument("--" + field.name.replace("_", "-"), type=float, default=field.default)
+    add_config_flags(parser, SamplerTrainConfig)
     return distributed.run(_train, parser, parser.parse_args(argv))
 
 
 def _train(parser, args, processes):
-    config = SamplerTrainConfig(**{field.name: getattr(args, field.name)
-                                   for field in dataclasses.fields(SamplerTrainConfig) if hasattr(args, field.name)})
+    config = config_from_flags(SamplerTrainConfig, args)
     folder = Path(args.weights)
     checkpoint = args.checkpoint or checkpoints.default_path("sampler", folder)
     model, _ = weights.load_model(folder / weights.MODEL_FILE)
