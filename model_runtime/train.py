@@ -77,6 +77,7 @@ class TrainConfig:
     angle_weight: float = 2.0  # GSPS: squared cosine outside the joint-angle limits, summed over frames
     prior_realism_share: float = 0.5  # weight of the realism terms on the prior sample
     prior_known_weight: float = 1.0  # the prior sample's squared error on the known coordinates
+    body_relative_share: float = 0.0  # of the root's error taken from the other joints' (``body_relative``)
     rest_start_share: float = 0.2  # windows whose initial pose is a rest pose (``augment.rest_start``)
     mirror_probability: float = 0.5
     seed: int = 0
@@ -160,7 +161,7 @@ def losses(model, initial, future, mask, contacts, limits, config):
     the product draws prior samples, and with realism alone on them they learned to lag their given
     joints (a given hip moved at 60 % of its speed)."""
     decoded = model(initial, future, mask)
-    squared = (decoded.reconstruction - future) ** 2
+    squared = body_relative(decoded.reconstruction - future, config.body_relative_share) ** 2
     mask = masks.per_coordinate(mask)
     known = (squared * mask).flatten(1).sum(-1).mean()
     prior_known = (((decoded.prior_motion - future) ** 2) * mask).flatten(1).sum(-1).mean()
@@ -256,9 +257,14 @@ def root_and_body_error(motion, truth):
     """Squared error (B,) of motions (B, T, J, 3), summed per sample: the root's, and the other
     joints' relative to the root, so a body is scored on its pose apart from where its root went
     (scored in absolute positions, the root's error spread over every joint)."""
-    difference = motion - truth
+    return (body_relative(motion - truth) ** 2).flatten(1).sum(-1)
+
+
+def body_relative(difference, share=1.0):
+    """Differences (..., J, 3) of poses with ``share`` x the root's difference taken from the other
+    joints': at 1 the root's own error and the pose's apart from it, at 0 absolute positions."""
     root = difference[..., :1, :]
-    return (torch.cat([root, difference[..., 1:, :] - root], dim=-2) ** 2).flatten(1).sum(-1)
+    return torch.cat([root, difference[..., 1:, :] - share * root], dim=-2)
 
 
 def train_stage(model, stage):

@@ -152,9 +152,9 @@ def test_completing_the_prior_mean_brings_its_end_pose_closer(model, all_clips, 
     assert errors["completed"][1] < errors["pinned"][1]
 
 
-def test_second_stage_scores_the_root_apart_from_the_body():
+def test_reconstructions_score_the_root_apart_from_the_body():
     """A whole body off by d is one root error, d^2 per frame; the same error on one joint alone
-    is that joint's, relative to the root."""
+    is that joint's, relative to the root. At share 0 the first stage scores absolute positions."""
     truth = torch.randn(2, 60, 17, 3)
     shift = torch.tensor([0.1, -0.2, 0.05])
     torch.testing.assert_close(train.root_and_body_error(truth + shift, truth),
@@ -162,6 +162,8 @@ def test_second_stage_scores_the_root_apart_from_the_body():
     moved = truth.clone()
     moved[:, :, 13] += shift
     torch.testing.assert_close(train.root_and_body_error(moved, truth), train.root_and_body_error(truth + shift, truth))
+    difference = torch.randn(2, 60, 17, 3)
+    torch.testing.assert_close(train.body_relative(difference, 0.0), difference)
 
 
 def test_training_runs_checkpoints_resumes_and_its_second_stage_depends_only_on_the_first(tmp_path):
