@@ -12,7 +12,9 @@ contact, m/s); the ground truth's own realism figures are printed beside.
 By default the windows come from the validation subjects; ``--data`` takes
 any BVH files or folders. The nearest-neighbour baseline searches the
 training subjects' windows. "trajevae" draws plain prior samples (with
-curves, the most plausible of a doubled pool), the paper's way; "sampler" is
+curves, the most plausible of a doubled pool), the paper's way;
+"trajevae_posterior" decodes the posterior mean, which sees the future (an
+oracle: what the latents can carry, the bound prior samples approach); "sampler" is
 what the add-on ships for every generation: the diverse sampler's and the
 prior's draws (5K each), screened and spread by ``selection`` (it runs when
 the sampler's weights exist). Its pool of 10K draws costs five plain
@@ -35,9 +37,10 @@ import torch
 
 from . import baselines, masks, metrics, numpy_model, realism, weights
 from .data import clips, dataset
+from .model import reconstruct
 from .sampler import prior_motions, sample_motions
 
-METHODS = ("trajevae", "trajevae_mean", "sampler", "pinned_pose", "nearest_neighbour")
+METHODS = ("trajevae", "trajevae_mean", "trajevae_posterior", "sampler", "pinned_pose", "nearest_neighbour")
 METRICS = ("APD", "ADE", "FDE", "MMADE", "MMFDE", "traj_err", "MPD", "bone_dev", "angle_out", "skating")
 REALISM = ("bone_dev", "angle_out", "skating")
 
@@ -48,7 +51,7 @@ def generate(method, model, neighbours, windows, mask, samples, generator, diver
     screens them (``selection``; numpy (low, high), those of the model's weights folder)."""
     initial, future = windows[:, 0], windows[:, 1:]
     trajectories = future * masks.per_coordinate(mask)
-    if method in ("trajevae", "trajevae_mean", "sampler"):
+    if method in ("trajevae", "trajevae_mean", "trajevae_posterior", "sampler"):
         out = []
         known = torch.from_numpy(np.broadcast_to(mask, (len(windows),) + mask.shape).copy())
         for start in range(0, len(windows), 16):
@@ -59,6 +62,8 @@ def generate(method, model, neighbours, windows, mask, samples, generator, diver
                     motion = sample_motions(model, diverse_sampler, *condition, samples, generator, screen_limits)
                 elif method == "trajevae":
                     motion = prior_motions(model, *condition, samples, generator, screen_limits)
+                elif method == "trajevae_posterior":
+                    motion = reconstruct(model, condition[0], torch.from_numpy(future[part]), known[part])
                 else:
                     motion = model.sample(*condition, 1, generator=generator, use_mean=True)
             out.append(motion.numpy())

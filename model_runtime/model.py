@@ -262,6 +262,21 @@ class TrajeVAE(nn.Module):
         return motion if decoded_only else self.complete(motion, initial, trajectories, mask, keep_given)
 
 
+@torch.no_grad()
+def reconstruct(model, initial, future, mask):
+    """The posterior mean's decode, completed, known joints as given: (B, 1, T, J, 3) for the
+    whole future poses (B, T, J, 3) and a mask (B, T, J) or (B, T, J, 3).
+
+    An oracle (the posterior sees the future): how much of a motion the latents carry at all,
+    the bound that prior samples approach; no nearer the capture than the prior mean's decode,
+    the decoder is not using its latents for the pose.
+    """
+    trajectories = future * per_coordinate(mask)
+    _, _, encoded, pose_code = model._prior(initial, trajectories, mask)
+    mean, _ = model.posterior(initial, future, mask, pose_code)
+    return model.complete(model.decode(mean, encoded)[0][:, None], initial, trajectories, mask)
+
+
 def _in_chunks(function, *tensors):
     """``function`` over ``DECODE_CHUNK`` sequences of the tensors (N, ...) at a time, its results
     concatenated: on the CPU that keeps attention in cache (2400 sequences at once ran 1.6-2x

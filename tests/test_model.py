@@ -214,6 +214,7 @@ def test_evaluate_prints_and_writes_every_method_and_k(tmp_path, capsys, mocap_r
         assert set(entry["k"]) == ({"0"} if method == "sampler" else {"0", "1", "2", "3", "4"})
         assert all(set(row) == set(evaluate.METRICS) for row in entry["k"].values())
     assert result["methods"]["pinned_pose"]["k"]["2"]["traj_err"] == 0.0
+    assert result["methods"]["trajevae_posterior"]["k"]["2"]["traj_err"] == 0.0  # the oracle keeps what is given
     assert result["methods"]["trajevae"]["k"]["0"]["APD"] > 0
     assert "nearest_neighbour" in capsys.readouterr().out
     from model_runtime import model_card
