@@ -268,8 +268,8 @@ def reconstruct(model, initial, future, mask):
     whole future poses (B, T, J, 3) and a mask (B, T, J) or (B, T, J, 3).
 
     An oracle (the posterior sees the future): how much of a motion the latents carry at all,
-    the bound that prior samples approach; no nearer the capture than the prior mean's decode,
-    the decoder is not using its latents for the pose.
+    the bound that prior samples approach. Where it comes no nearer the capture than the prior
+    mean's decode, the latents do not carry the pose.
     """
     trajectories = future * per_coordinate(mask)
     _, _, encoded, pose_code = model._prior(initial, trajectories, mask)
