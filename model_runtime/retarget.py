@@ -244,7 +244,7 @@ def _lean_to_hands(rig, targets, chest, pivot, pinned, most=MAX_LEAN_TO_HAND):
     than fold. The lean comes and goes at LEAN_DEG_PER_FRAME at most, and is none where the chest
     is keyed: rising early for a hand's need a few frames after a key, it turned a keyed chest
     by a degree, its shoulder 6 mm off, and the keyed straight arm bent: the elbow 2.6 cm off its key."""
-    start = rig.joints
+    start, rate = rig.joints, np.radians(LEAN_DEG_PER_FRAME)
     for shoulder, elbow, wrist in LIMBS[2:]:
         reach = REACH_MARGIN * limb_length(start, (shoulder, elbow, wrist))
         centre = _apply(chest, pivot)
@@ -255,7 +255,6 @@ def _lean_to_hands(rig, targets, chest, pivot, pinned, most=MAX_LEAN_TO_HAND):
         closest = np.arccos(np.clip((r ** 2 + d ** 2 - reach ** 2) / np.maximum(2 * r * d, 1e-12), -1.0, 1.0))
         furthest = np.minimum(between, np.radians(most))
         needed = np.clip(between - closest, 0.0, furthest) * pinned[:, J[wrist]]
-        rate = np.radians(LEAN_DEG_PER_FRAME)
         allowed = -rate_limited_from_above(-np.where(pinned[:, J["Thorax"]] > 0, 0.0, furthest), rate)
         turn = np.minimum(rate_limited_from_above(needed, rate), allowed)
         rotation = _axis_angle_matrix(_unit(np.cross(arm, goal)), turn) @ chest[:, :3, :3]
