@@ -49,14 +49,14 @@ NOTES = """
 planted: mean horizontal speed of toes within 2 cm of the floor (the lower toe at the start frame). float, sink:
 the lower toe's highest height above and deepest depth below it. air: frames with both toes over 3 cm up. acc:
 worst joint acceleration; spike: worst frame over median frame. steps: per foot, right/left. lean: hips to neck
-base from vertical. swing: the wrists' swing front to back (5th-95th percentile from the shoulder). knee-in: knee
-pointing inward of forward. off-limit: frames outside the joint-angle limits fitted on the training data. spread:
-mean pairwise joint distance of the variants. curve: the bound joint to where its curve puts it. path: the hips'
-farthest from a ground path; facing: worst angle of the body's facing from the path's tangent; hip h: the hips'
-lowest height over their standing height; seam: the worst acceleration within 2 frames of where model windows
-meet over the worst elsewhere / the same of the means. key: worst keyed joint at the key frame / the head top,
-which the keyed rotation of the head bone places. Over variants: float, sink, acc, spike, lean, knee-in and key
-are the worst, the rest means.
+base from vertical. roll: the hip line's tilt from horizontal. swing: the wrists' swing front to back (5th-95th
+percentile from the shoulder). knee-in: knee pointing inward of forward. off-limit: frames outside the joint-angle
+limits fitted on the training data. spread: mean pairwise joint distance of the variants. curve: the bound joint to
+where its curve puts it. path: the hips' farthest from a ground path; facing: worst angle of the body's facing from
+the path's tangent; hip h: the hips' lowest height over their standing height; seam: the worst acceleration within
+2 frames of where model windows meet over the worst elsewhere / the same of the means. key: worst keyed joint at
+the key frame / the head top, which the keyed rotation of the head bone places. Over variants: float, sink, acc,
+spike, lean, roll, knee-in and key are the worst, the rest means.
 Capture, levelled: the clip with its capture floor levelled as the training data loader levels it; the tilt is
 how far that moved points up or down over the clip."""
 
@@ -133,6 +133,7 @@ def figures(shot, limits, error=None):
             "acc m/s2": f"{max(worst):.0f}", "spike x": f"{max(spike):.0f}",
             "steps R/L": "/".join(f"{n:.1f}".rstrip("0").rstrip(".") for n in np.mean(steps, axis=0)),
             "lean deg": f"{quality.lean_degrees(shot.joints.reshape(-1, 17, 3)).max():.0f}",
+            "roll deg": f"{quality.roll_degrees(shot.joints.reshape(-1, 17, 3)).max():.0f}",
             "swing m": f"{np.mean([quality.arm_swing(joints) for joints in shot.joints]):.2f}",
             "knee-in deg": f"{quality.knee_inward_degrees(shot.joints.reshape(-1, 17, 3)).max():.0f}",
             "off-limit %": f"{100 * realism.share_outside_limits(shot.joints, limits):.0f}",

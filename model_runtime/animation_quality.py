@@ -9,7 +9,7 @@ add-on's tests, its benchmark and real capture imported into Blender.
 
 import numpy as np
 
-from .skeleton import JOINT_INDEX, facing
+from .skeleton import JOINT_INDEX, facing, hips_roll
 
 J = JOINT_INDEX
 PLANTED_BAND_M = 0.02  # a toe this close to the floor is planted
@@ -88,6 +88,11 @@ def lean_degrees(joints):
     """Per frame, the angle (F,) of Hip -> Thorax from vertical, degrees."""
     up = joints[:, J["Thorax"]] - joints[:, J["Hip"]]
     return np.degrees(np.arccos(np.clip(up[:, 2] / np.linalg.norm(up, axis=-1), -1.0, 1.0)))
+
+
+def roll_degrees(joints):
+    """Per frame, how far (F,) the hip line tilts from horizontal, degrees (the pelvis's roll)."""
+    return np.abs(np.degrees(hips_roll(joints)))
 
 
 def arm_swing(joints):

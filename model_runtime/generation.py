@@ -7,7 +7,8 @@ that frame and back; ``generate`` chains windows: each window after the first
 starts ``overlap`` frames before the previous one ends, sees those frames as
 known (see below), and the two are cross-faded over the overlap, so there is
 no seam. Every frame keeps the initial pose's proportions above
-the hips (``with_proportions``). A later window carries the legs and the hips'
+the hips (``with_proportions``) and the hips' roll near the initial pose's
+(``with_level_pelvis``). A later window carries the legs and the hips'
 horizontal position only: its upper body and hip height start afresh from the
 initial pose's (``anchored``), so what one window bends or sinks the next does
 not continue (carried whole, a 10 s walk's torso folded to 0.4 of its length and
@@ -22,7 +23,7 @@ from .data.clips import NATIVE_FPS
 from .augment import rotate_about_z
 from .filters import smoothstep
 from .masks import per_coordinate
-from .skeleton import JOINT_INDEX, JOINT_NAMES, LIMBS, LOWER_BODY, PARENTS, UPPER_BODY, facing, indices
+from .skeleton import JOINT_INDEX, JOINT_NAMES, LIMBS, LOWER_BODY, PARENTS, UPPER_BODY, facing, hips_roll, indices
 
 # Hip-knee-ankle length of the training subjects (metres, 201 clips: 0.796 to
 # 0.880, median 0.808): rigs whose legs fall outside are scaled to the median.
@@ -37,6 +38,13 @@ WINDOW_OVERLAP = 15
 # drift dead there (a reach's body, moving 1 m/s sideways, stopped in one frame: 83 m/s^2 on the
 # elbow as played); 6 and 10 frames carried it on far enough to bend legs past their limits.
 MOMENTUM_FRAMES = 4
+# The hips' roll (the line between the hip joints tilting about the body's forward axis) is kept
+# as generated up to PELVIS_ROLL_FREE_DEG beyond the initial pose's and eased toward
+# PELVIS_ROLL_MOST_DEG beyond it: the model rolled the pelvis 12-24 degrees in a wave and a long
+# walk (median 11), and a rig whose trunk turns as one bone (Rigify's torso) leaned sideways with
+# it; captured walks and reaches of ../shared roll at most 3-10 degrees.
+PELVIS_ROLL_FREE_DEG = 5.0
+PELVIS_ROLL_MOST_DEG = 10.0
 # The joints a later window's start raises to the initial hip height and a carried speed moves: the
 # pelvis and everything above it, the legs below the hip joints staying where they are.
 PELVIS_AND_ABOVE = indices(UPPER_BODY + ("Hip", "RHip", "LHip"))
@@ -141,6 +149,27 @@ def _facing_angle(poses):
     return np.arctan2(forward[..., 1], forward[..., 0])
 
 
+def with_level_pelvis(poses, reference):
+    """Poses (..., 17, 3) with the hip joints turned about their midpoint, in the vertical plane
+    through them, so the hips' roll beyond ``reference``'s (17, 3) stays within
+    PELVIS_ROLL_MOST_DEG, eased (no kink in its speed) from PELVIS_ROLL_FREE_DEG on."""
+    right, left = JOINT_INDEX["RHip"], JOINT_INDEX["LHip"]
+    roll = hips_roll(poses)
+    excess = roll - hips_roll(reference)
+    free, room = np.radians(PELVIS_ROLL_FREE_DEG), np.radians(PELVIS_ROLL_MOST_DEG - PELVIS_ROLL_FREE_DEG)
+    beyond = np.maximum(np.abs(excess) - free, 0.0)
+    kept = roll - np.sign(excess) * (beyond - room * np.tanh(beyond / room))  # (...)
+    across = poses[..., left, :] - poses[..., right, :]
+    ground = across * np.array([1.0, 1.0, 0.0])
+    ground /= np.maximum(np.linalg.norm(ground, axis=-1, keepdims=True), 1e-9)
+    half = 0.5 * np.linalg.norm(across, axis=-1)[..., None] * (
+        np.cos(kept)[..., None] * ground + np.sin(kept)[..., None] * np.array([0.0, 0.0, 1.0]))
+    middle = 0.5 * (poses[..., left, :] + poses[..., right, :])
+    out = poses.copy()
+    out[..., left, :], out[..., right, :] = middle + half, middle - half
+    return out
+
+
 def with_proportions(poses, reference):
     """Poses (..., 17, 3) with every segment (joint to parent) above the hips as long as in
     ``reference`` (17, 3), each in its own direction, from the hips out. Each window of a long shot
@@ -199,6 +228,7 @@ def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, samp
         else:
             new, feet = (part[:, 0] for part in _window(model, anchored(motion[:, start], initial), given, known, 1,
                                                          rng, diversity, None, continuation=True))
+        new = with_level_pelvis(new, initial)
         fade = smoothstep(np.linspace(0.0, 1.0, carried + 2)[1:-1, None])  # no kink where it starts or ends
         motion[:, start + 1:done + 1] = motion[:, start + 1:done + 1] * (1.0 - fade[..., None]) \
             + new[:, :carried] * fade[..., None]

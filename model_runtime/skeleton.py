@@ -90,6 +90,12 @@ def rigid_bone_lengths(poses):
     return (offsets ** 2).sum(-1) ** 0.5
 
 
+def hips_roll(positions):
+    """Angles (...) of the right-to-left hip line above horizontal, radians: (..., J, 3) -> (...)."""
+    across = np.asarray(positions)[..., JOINT_INDEX["LHip"], :] - np.asarray(positions)[..., JOINT_INDEX["RHip"], :]
+    return np.arctan2(across[..., 2], np.linalg.norm(across[..., :2], axis=-1))
+
+
 def facing(positions):
     """Unit forward direction in the ground plane: (..., J, 3) -> (..., 3)."""
     positions = np.asarray(positions)

@@ -228,6 +228,31 @@ def test_every_frame_keeps_the_initial_poses_proportions_above_the_hips():
     np.testing.assert_array_equal(kept[:, 0], stretched[:, 0])
 
 
+def test_hips_rolling_further_and_further_are_levelled_without_a_kink():
+    """A pelvis the model rolls a little more each window (a wave's reached 24 degrees) tilted a
+    Rigify trunk sideways with it; captured motion of ../shared rolls at most 3-10 degrees."""
+    initial = mannequin_module.REST_JOINTS.astype(np.float64)
+    right, left = JOINT_INDEX["RHip"], JOINT_INDEX["LHip"]
+    middle, half = 0.5 * (initial[left] + initial[right]), 0.5 * (initial[left] - initial[right])
+    degrees = np.linspace(0.0, 40.0, 300)
+    rolled = np.repeat(initial[None], len(degrees), axis=0)
+    lift = np.abs(half[0]) * np.tan(np.radians(degrees))  # the left hip rising over the right about their middle
+    rolled[:, left] = middle + half + lift[:, None] * [0.0, 0.0, 1.0]
+    rolled[:, right] = middle - half - lift[:, None] * [0.0, 0.0, 1.0]
+    level = generation.with_level_pelvis(rolled, initial)
+    roll = np.degrees(skeleton.hips_roll(level))
+    print(f"hips rolled to 40 degrees: {roll[-1]:.1f} after")
+    assert roll.max() < generation.PELVIS_ROLL_MOST_DEG
+    mild = degrees < generation.PELVIS_ROLL_FREE_DEG
+    np.testing.assert_allclose(level[mild], rolled[mild], atol=1e-9)  # within the free roll: untouched
+    np.testing.assert_allclose(np.linalg.norm(level[:, left] - level[:, right], axis=-1),
+                               np.linalg.norm(rolled[:, left] - rolled[:, right], axis=-1), atol=1e-9)
+    np.testing.assert_allclose(level[:, [left, right]].mean(axis=1), rolled[:, [left, right]].mean(axis=1), atol=1e-9)
+    others = [joint for joint in range(17) if joint not in (left, right)]
+    np.testing.assert_array_equal(level[:, others], rolled[:, others])
+    assert (np.diff(roll) > 0).all() and np.abs(np.diff(roll, 2)).max() < 0.01  # still rising, and eased: no kink
+
+
 def test_a_later_window_carries_on_the_bodys_speed_where_its_carried_frames_end():
     """A body moving 3 cm a frame sideways through the carried frames, then still in the window's
     own: it slows over MOMENTUM_FRAMES instead of stopping in a frame; its legs, and a body whose
