@@ -67,7 +67,7 @@ WALKING_FULL_M_S = 1.0
 # hang nearly still (0.08-0.15 m). A walk's variants swing theirs over ARM_SWING_SPREAD.
 ARM_SWING_DEG = 24.0
 ARM_SWING_SPREAD = (12.0, 40.0)
-# Walking, the torso leans LEAN_DEG forward of the model's (cleanup.leaning_into_the_walk); a walk's
+# Walking, the torso leans LEAN_DEG forward of the start pose's (cleanup.leaning_into_the_walk); a walk's
 # variants lean over LEAN_SPREAD. Between people of ../shared walking the same path (statures
 # scaled alike), the neck and head lie 9 cm apart, the wrists 14 cm: posture differs.
 LEAN_DEG = 3.0

@@ -353,6 +353,34 @@ def test_a_torso_leaning_further_and_further_is_drawn_back_toward_the_start_pose
     np.testing.assert_allclose(lengths, np.linalg.norm(motion[0][:, above] - hip, axis=-1), atol=1e-9)
 
 
+def test_a_walk_leans_to_its_gaits_lean_whatever_the_models_own():
+    """Two takes walking 1.2 m/s along the mannequin's facing, one generated upright, one leaning
+    12 degrees forward of the start pose: both end up leaning the gait's 3 degrees (turned to it, not
+    by it: the second leaned 15), the stride's sway of +-2 degrees kept, and still where they stand."""
+    frames, initial = 150, mannequin_module.REST_JOINTS.astype(np.float64)
+    motion = np.repeat(_still(frames), 2, axis=0)
+    forward = skeleton.facing(initial)
+    walking = np.arange(frames) >= 60  # still for 2 s, then walking
+    motion += (np.cumsum(walking) * 1.2 / FPS)[None, :, None, None] * forward
+    hip, above = JOINT_INDEX["Hip"], skeleton.indices(skeleton.UPPER_BODY)
+    across = np.cross(forward, [0.0, 0.0, 1.0])
+    sway = 2.0 * np.sin(np.arange(frames) * 4.0 * np.pi / FPS)  # two a second, one a step
+    for take, own in enumerate((0.0, 12.0)):
+        angle = -np.radians(own + sway)
+        motion[take] = cleanup._upper_body_turned(motion[take][None], np.broadcast_to(across, (1, frames, 3)),
+                                                  angle[None])[0]
+    leant = cleanup.leaning_into_the_walk(motion, np.array([3.0, 3.0]), FPS, initial)
+    torso = leant[:, :, JOINT_INDEX["Thorax"]] - leant[:, :, hip]
+    lean = np.degrees(np.arctan2(np.sum(torso * forward, axis=-1), torso[..., 2]))  # (2, F)
+    print(f"walking, lean forward: {lean[:, 90:140].mean(axis=1).round(1)} degrees (sway kept: "
+          f"{np.ptp(lean[:, 90:140], axis=1).round(1)})")
+    np.testing.assert_allclose(lean[:, 90:140].mean(axis=1), 3.0, atol=0.3)
+    assert (np.ptp(lean[:, 90:140], axis=1) > 3.8).all()  # the +-2 degree sway
+    np.testing.assert_allclose(leant[:, :30], motion[:, :30], atol=1e-9)  # standing: untouched
+    np.testing.assert_allclose(np.linalg.norm(leant[:, :, above] - leant[:, :, hip, None], axis=-1),
+                               np.linalg.norm(motion[:, :, above] - motion[:, :, hip, None], axis=-1), atol=1e-9)
+
+
 def test_hips_sinking_further_and_further_are_raised_over_the_feet():
     frames, initial = 300, mannequin_module.REST_JOINTS.astype(np.float64)
     motion = _still(frames)
