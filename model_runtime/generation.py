@@ -7,8 +7,8 @@ that frame and back; ``generate`` chains windows: each window after the first
 starts ``overlap`` frames before the previous one ends, sees those frames as
 known (see below), and the two are cross-faded over the overlap, so there is
 no seam. Every frame keeps the initial pose's proportions above
-the hips (``with_proportions``) and the hips' roll near the initial pose's
-(``with_level_pelvis``). A later window carries the legs and the hips'
+the hips (``with_proportions``) and a rigid pelvis whose roll stays near the
+initial pose's (``with_rigid_pelvis``). A later window carries the legs and the hips'
 horizontal position only: its upper body and hip height start afresh from the
 initial pose's (``anchored``), so what one window bends or sinks the next does
 not continue (carried whole, a 10 s walk's torso folded to 0.4 of its length and
@@ -23,6 +23,7 @@ from .data.clips import NATIVE_FPS
 from .augment import rotate_about_z
 from .filters import smoothstep
 from .masks import per_coordinate
+from .retarget import steady_across
 from .skeleton import JOINT_INDEX, JOINT_NAMES, LIMBS, LOWER_BODY, PARENTS, UPPER_BODY, facing, hips_roll, indices
 
 # Hip-knee-ankle length of the training subjects (metres, 201 clips: 0.796 to
@@ -149,23 +150,27 @@ def _facing_angle(poses):
     return np.arctan2(forward[..., 1], forward[..., 0])
 
 
-def with_level_pelvis(poses, reference):
-    """Poses (..., 17, 3) with the hip joints turned about their midpoint, in the vertical plane
-    through them, so the hips' roll beyond ``reference``'s (17, 3) stays within
-    PELVIS_ROLL_MOST_DEG, eased (no kink in its speed) from PELVIS_ROLL_FREE_DEG on."""
+def with_rigid_pelvis(motion, reference):
+    """Motions (V, F, 17, 3) with the hip joints as far apart as in ``reference`` (17, 3), about
+    their midpoint, along the hips' direction steadied as the retarget steadies it
+    (``retarget.steady_across``: where the generated hips lie close together, the shoulders'
+    direction takes over) and rolled no further than PELVIS_ROLL_MOST_DEG beyond ``reference``'s,
+    eased (no kink in its speed) from PELVIS_ROLL_FREE_DEG on. The hip joints are a rigid offset
+    of the pelvis; the model keeps each one's distance from the root but not their angle, and in
+    some takes brought them within 5 cm of each other, where the facing they define flipped."""
     right, left = JOINT_INDEX["RHip"], JOINT_INDEX["LHip"]
-    roll = hips_roll(poses)
+    across = np.stack([steady_across(reference, variant)[0] for variant in motion])  # (V, F, 3) unit
+    roll = np.arctan2(across[..., 2], np.linalg.norm(across[..., :2], axis=-1))
     excess = roll - hips_roll(reference)
     free, room = np.radians(PELVIS_ROLL_FREE_DEG), np.radians(PELVIS_ROLL_MOST_DEG - PELVIS_ROLL_FREE_DEG)
     beyond = np.maximum(np.abs(excess) - free, 0.0)
-    kept = roll - np.sign(excess) * (beyond - room * np.tanh(beyond / room))  # (...)
-    across = poses[..., left, :] - poses[..., right, :]
+    kept = roll - np.sign(excess) * (beyond - room * np.tanh(beyond / room))  # (V, F)
     ground = across * np.array([1.0, 1.0, 0.0])
     ground /= np.maximum(np.linalg.norm(ground, axis=-1, keepdims=True), 1e-9)
-    half = 0.5 * np.linalg.norm(across, axis=-1)[..., None] * (
+    half = 0.5 * np.linalg.norm(reference[left] - reference[right]) * (
         np.cos(kept)[..., None] * ground + np.sin(kept)[..., None] * np.array([0.0, 0.0, 1.0]))
-    middle = 0.5 * (poses[..., left, :] + poses[..., right, :])
-    out = poses.copy()
+    middle = 0.5 * (motion[..., left, :] + motion[..., right, :])
+    out = motion.copy()
     out[..., left, :], out[..., right, :] = middle + half, middle - half
     return out
 
@@ -228,7 +233,7 @@ def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, samp
         else:
             new, feet = (part[:, 0] for part in _window(model, anchored(motion[:, start], initial), given, known, 1,
                                                          rng, diversity, None, continuation=True))
-        new = with_level_pelvis(new, initial)
+        new = with_rigid_pelvis(new, initial)
         fade = smoothstep(np.linspace(0.0, 1.0, carried + 2)[1:-1, None])  # no kink where it starts or ends
         motion[:, start + 1:done + 1] = motion[:, start + 1:done + 1] * (1.0 - fade[..., None]) \
             + new[:, :carried] * fade[..., None]

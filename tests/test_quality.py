@@ -235,22 +235,46 @@ def test_hips_rolling_further_and_further_are_levelled_without_a_kink():
     right, left = JOINT_INDEX["RHip"], JOINT_INDEX["LHip"]
     middle, half = 0.5 * (initial[left] + initial[right]), 0.5 * (initial[left] - initial[right])
     degrees = np.linspace(0.0, 40.0, 300)
-    rolled = np.repeat(initial[None], len(degrees), axis=0)
+    rolled = np.repeat(initial[None, None], len(degrees), axis=1)  # (1, F, 17, 3)
     lift = np.abs(half[0]) * np.tan(np.radians(degrees))  # the left hip rising over the right about their middle
-    rolled[:, left] = middle + half + lift[:, None] * [0.0, 0.0, 1.0]
-    rolled[:, right] = middle - half - lift[:, None] * [0.0, 0.0, 1.0]
-    level = generation.with_level_pelvis(rolled, initial)
+    rolled[0, :, left] = middle + half + lift[:, None] * [0.0, 0.0, 1.0]
+    rolled[0, :, right] = middle - half - lift[:, None] * [0.0, 0.0, 1.0]
+    level = generation.with_rigid_pelvis(rolled, initial)[0]
     roll = np.degrees(skeleton.hips_roll(level))
     print(f"hips rolled to 40 degrees: {roll[-1]:.1f} after")
     assert roll.max() < generation.PELVIS_ROLL_MOST_DEG
-    mild = degrees < generation.PELVIS_ROLL_FREE_DEG
-    np.testing.assert_allclose(level[mild], rolled[mild], atol=1e-9)  # within the free roll: untouched
+    mild = degrees < generation.PELVIS_ROLL_FREE_DEG - 0.5
+    np.testing.assert_allclose(roll[mild], degrees[mild], atol=0.05)  # within the free roll: as generated
     np.testing.assert_allclose(np.linalg.norm(level[:, left] - level[:, right], axis=-1),
-                               np.linalg.norm(rolled[:, left] - rolled[:, right], axis=-1), atol=1e-9)
-    np.testing.assert_allclose(level[:, [left, right]].mean(axis=1), rolled[:, [left, right]].mean(axis=1), atol=1e-9)
+                               np.linalg.norm(initial[left] - initial[right]), rtol=1e-9)  # a rigid pelvis
+    np.testing.assert_allclose(level[:, [left, right]].mean(axis=1), rolled[0][:, [left, right]].mean(axis=1),
+                               atol=1e-9)
     others = [joint for joint in range(17) if joint not in (left, right)]
-    np.testing.assert_array_equal(level[:, others], rolled[:, others])
-    assert (np.diff(roll) > 0).all() and np.abs(np.diff(roll, 2)).max() < 0.01  # still rising, and eased: no kink
+    np.testing.assert_array_equal(level[:, others], rolled[0][:, others])
+    assert (np.diff(roll[5:-5]) > 0).all() and np.abs(np.diff(roll[5:-5], 2)).max() < 0.01  # rising, no kink
+
+
+def test_hips_the_model_brings_together_keep_the_pelvis_width_and_facing():
+    """The out/rb7000 weights brought a run's hip joints within 5 cm of each other, crossing for a
+    frame, and the facing they define flipped 209 degrees: the body spun round for a frame. Here
+    the hips close to 4 cm and swap sides for 3 frames; the shoulders keep the body's facing."""
+    initial = mannequin_module.REST_JOINTS.astype(np.float64)
+    right, left = JOINT_INDEX["RHip"], JOINT_INDEX["LHip"]
+    motion = np.repeat(initial[None, None], 60, axis=1)  # (1, F, 17, 3)
+    middle, half = 0.5 * (initial[left] + initial[right]), 0.5 * (initial[left] - initial[right])
+    width = np.ones(60)
+    width[20:40] = 0.2
+    width[29:32] = -0.2  # crossed
+    motion[0, :, left] = middle + width[:, None] * half
+    motion[0, :, right] = middle - width[:, None] * half
+    kept = generation.with_rigid_pelvis(motion, initial)[0]
+    forward = skeleton.facing(kept)
+    turn = np.degrees(np.arccos(np.clip(np.sum(forward * skeleton.facing(initial), axis=-1), -1.0, 1.0)))
+    print(f"hips closed and crossed: facing at most {turn.max():.1f} degrees off, width "
+          f"{np.linalg.norm(kept[:, left] - kept[:, right], axis=-1).min():.3f} m")
+    assert turn.max() < 1.0
+    np.testing.assert_allclose(np.linalg.norm(kept[:, left] - kept[:, right], axis=-1),
+                               np.linalg.norm(initial[left] - initial[right]), rtol=1e-9)
 
 
 def test_a_later_window_carries_on_the_bodys_speed_where_its_carried_frames_end():
