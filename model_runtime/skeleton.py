@@ -92,7 +92,8 @@ def rigid_bone_lengths(poses):
 
 def hips_roll(positions):
     """Angles (...) of the right-to-left hip line above horizontal, radians: (..., J, 3) -> (...)."""
-    across = np.asarray(positions)[..., JOINT_INDEX["LHip"], :] - np.asarray(positions)[..., JOINT_INDEX["RHip"], :]
+    positions = np.asarray(positions)
+    across = positions[..., JOINT_INDEX["LHip"], :] - positions[..., JOINT_INDEX["RHip"], :]
     return np.arctan2(across[..., 2], np.linalg.norm(across[..., :2], axis=-1))
 
 
