@@ -24,7 +24,8 @@ from .augment import rotate_about_z
 from .filters import smoothstep
 from .masks import per_coordinate
 from .retarget import steady_across
-from .skeleton import JOINT_INDEX, JOINT_NAMES, LIMBS, LOWER_BODY, PARENTS, UPPER_BODY, facing, hips_roll, indices
+from .skeleton import (JOINT_INDEX, JOINT_NAMES, LIMBS, LOWER_BODY, PARENTS, UPPER_BODY, elevation, facing, hips_roll,
+                       indices)
 
 # Hip-knee-ankle length of the training subjects (metres, 201 clips: 0.796 to
 # 0.880, median 0.808): rigs whose legs fall outside are scaled to the median.
@@ -160,7 +161,7 @@ def with_rigid_pelvis(motion, reference):
     some takes brought them within 5 cm of each other, where the facing they define flipped."""
     right, left = JOINT_INDEX["RHip"], JOINT_INDEX["LHip"]
     across = np.stack([steady_across(reference, variant)[0] for variant in motion])  # (V, F, 3) unit
-    roll = np.arctan2(across[..., 2], np.linalg.norm(across[..., :2], axis=-1))
+    roll = elevation(across)
     excess = roll - hips_roll(reference)
     free, room = np.radians(PELVIS_ROLL_FREE_DEG), np.radians(PELVIS_ROLL_MOST_DEG - PELVIS_ROLL_FREE_DEG)
     beyond = np.maximum(np.abs(excess) - free, 0.0)

@@ -90,11 +90,15 @@ def rigid_bone_lengths(poses):
     return (offsets ** 2).sum(-1) ** 0.5
 
 
+def elevation(vectors):
+    """Angles (...) of vectors (..., 3) above the ground plane, radians."""
+    return np.arctan2(vectors[..., 2], np.linalg.norm(vectors[..., :2], axis=-1))
+
+
 def hips_roll(positions):
     """Angles (...) of the right-to-left hip line above horizontal, radians: (..., J, 3) -> (...)."""
     positions = np.asarray(positions)
-    across = positions[..., JOINT_INDEX["LHip"], :] - positions[..., JOINT_INDEX["RHip"], :]
-    return np.arctan2(across[..., 2], np.linalg.norm(across[..., :2], axis=-1))
+    return elevation(positions[..., JOINT_INDEX["LHip"], :] - positions[..., JOINT_INDEX["RHip"], :])
 
 
 def facing(positions):
