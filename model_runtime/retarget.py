@@ -439,7 +439,7 @@ def _turning_at_most(poles, along, most, free):
     """Unit poles (F, 3), each perpendicular to its limb's ``along`` (F, 3), turned about the limb
     from the previous frame's by at most ``most`` radians a frame, except on ``free`` (F,) frames
     (a key's bend is met as keyed). Where the hand passes close to the shoulder the way the elbow
-    points is steep in the limb's direction: a Rigify reach's elbow took 63 m/s^2 (41 so)."""
+    points is steep in the limb's direction, and the generated elbow flips from side to side."""
     out = poles.copy()
     for index in range(1, len(poles)):
         if free[index]:
