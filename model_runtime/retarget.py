@@ -445,9 +445,10 @@ def _turning_at_most(poles, along, most, free):
         if free[index]:
             continue
         previous = out[index - 1] - np.dot(out[index - 1], along[index]) * along[index]
-        if np.linalg.norm(previous) < 1e-6:
+        length = np.linalg.norm(previous)
+        if length < 1e-6:
             continue
-        previous = previous / np.linalg.norm(previous)
+        previous = previous / length
         angle = np.arctan2(np.dot(np.cross(previous, out[index]), along[index]), np.dot(previous, out[index]))
         if abs(angle) > most:
             angle = np.sign(angle) * most
