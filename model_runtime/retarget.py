@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import rotations
-from .filters import rate_limited_from_above, smooth, window_max
+from .filters import rate_limited_from_above, runs, smooth, window_max
 from .skeleton import JOINT_INDEX, LIMBS, limb_length
 
 J = JOINT_INDEX
@@ -60,6 +60,10 @@ MAX_BEND_TURN = {"leg": 30.0, "arm": 90.0}
 KNEE_INWARD_DEG = 8.0
 POLE_PRIOR = 0.2
 KEYED_BEND_TRUST = 0.05  # a keyed middle joint this far (upper-limb lengths) off its limb's line sets the bend
+# Frames trusted less than this (a keyed limb all but straight, or the key's weight all but gone:
+# a turn round by a whole circle there moves the pole 7 degrees at most) part the stretches a keyed
+# bend is turned to on its own.
+KEYED_SPLIT = 0.02
 # No knee or elbow folds tighter than captured ones do: the cosine between the upper and lower
 # bones' directions stays above this (the fitted angle limits: -0.93 to -0.94).
 TIGHTEST_FOLD_COS = -0.92
@@ -398,15 +402,18 @@ def _limb(rig, targets, parent, upper, lower, end, heading, fixed, pitch=None):
         below = np.where(inward, limit, np.radians(KNEE_INWARD_DEG))
     behind = np.clip((np.pi - np.abs(angle)) / (0.5 * np.pi), 0.0, 1.0)  # a bend generated backwards counts less
     own = np.clip(angle, -below, above) * behind * size / (size + POLE_PRIOR * first)
-    # A keyed bend is turned to from the limb's own the short way round, continuously in time (the
-    # two blended as plain angles once spun an elbow through 317 degrees in 5 frames before a key,
-    # and one wrapping from +180 to -180 degrees while the key's weight eased out swung an elbow 8 cm
-    # in a frame), and only as far as the keyed limb is bent at all (a straight arm's bend
-    # direction is noise that swung the elbow 5 cm in a frame).
+    # A keyed bend is turned to from the limb's own the short way round, continuously in time within
+    # each stretch of frames where the limb is bent (the two blended as plain angles once spun an
+    # elbow through 317 degrees in 5 frames before a key, and one wrapping from +180 to -180 degrees
+    # while the key's weight eased out swung an elbow 8 cm in a frame; carried on across a straight
+    # frame, after an arms-up key, the turn went the long way round at 60 degrees a frame), and only
+    # as far as the keyed limb is bent at all (a straight arm's bend direction is noise that swung
+    # the elbow 5 cm in a frame).
     as_keyed = fixed * np.clip(size / (KEYED_BEND_TRUST * first), 0.0, 1.0)
     to_keyed = np.unwrap(np.angle(np.exp(1j * (angle - own))))
-    if as_keyed.any():
-        to_keyed -= 2.0 * np.pi * np.round(np.average(to_keyed, weights=as_keyed) / (2.0 * np.pi))
+    for first_frame, last_frame in runs(as_keyed > KEYED_SPLIT):  # each stretch the short way round on its own
+        span = slice(first_frame, last_frame + 1)
+        to_keyed[span] -= 2.0 * np.pi * np.round(np.average(to_keyed[span], weights=as_keyed[span]) / (2.0 * np.pi))
     turn = own + as_keyed * to_keyed
     pole = _turning_at_most(np.cos(turn)[:, None] * own_bend + np.sin(turn)[:, None] * side, along,
                             np.radians(MAX_POLE_DEG_PER_FRAME), as_keyed > 0.0)
