@@ -46,17 +46,17 @@ OUT = ROOT / "out"
 WALK_FIGURE = ("rigify", "quarter turn")  # the README's picture of a walk: docs/walk.png
 CAPTURE = ("Female1_B03_Walk1", "02_01", "Female1_A07_Crouch", "Female1_A05_PickUpBox")  # MANIFEST file stems
 NOTES = """
-planted: mean horizontal speed of toes within 2 cm of the floor (the lower toe at the start frame). float, sink:
-the lower toe's highest height above and deepest depth below it. air: frames with both toes over 3 cm up. acc:
-worst joint acceleration; spike: worst frame over median frame. steps: per foot, right/left. lean: hips to neck
-base from vertical. roll: the hip line's tilt from horizontal. swing: the wrists' swing front to back (5th-95th
-percentile from the shoulder). knee-in: knee pointing inward of forward. off-limit: frames outside the joint-angle
-limits fitted on the training data. spread: mean pairwise joint distance of the variants. curve: the bound joint to
-where its curve puts it, mean / worst frame. path: the hips' farthest from a ground path; facing: worst angle of the body's facing from
-the path's tangent; hip h: the hips' lowest height over their standing height; seam: the worst acceleration within
-2 frames of where model windows meet over the worst elsewhere / the same of the means. key: worst keyed joint at
-the key frame / the head top, which the keyed rotation of the head bone places. Over variants: float, sink, acc,
-spike, lean, roll, knee-in and key are the worst, the rest means.
+planted: mean horizontal speed of toes within 2 cm of the floor (the lower toe at the start frame). float, sink: the
+lower toe's highest height above and deepest depth below it. air: frames with both toes over 3 cm up. acc: worst
+joint acceleration; spike: worst frame over median frame. steps: per foot, right/left. lean: hips to neck base from
+vertical. roll: the hip line's tilt from horizontal. swing: the wrists' swing front to back (5th-95th percentile
+from the shoulder). knee-in: knee pointing inward of forward. off-limit: frames outside the joint-angle limits
+fitted on the training data. spread: mean pairwise joint distance of the variants. curve: the bound joint to where
+its curve puts it, mean / worst frame. path: the hips' farthest from a ground path; facing: worst angle of the
+body's facing from the path's tangent; hip h: the hips' lowest height over their standing height; seam: the worst
+acceleration within 2 frames of where model windows meet over the worst elsewhere / the same of the means. key:
+worst keyed joint at the key frame / the head top, which the keyed rotation of the head bone places. Over variants:
+float, sink, acc, spike, lean, roll, knee-in and key are the worst, the rest means.
 Capture, levelled: the clip with its capture floor levelled as the training data loader levels it; the tilt is
 how far that moved points up or down over the clip."""
 

@@ -403,7 +403,7 @@ def _limb(rig, targets, parent, upper, lower, end, heading, fixed, pitch=None):
     behind = np.clip((np.pi - np.abs(angle)) / (0.5 * np.pi), 0.0, 1.0)  # a bend generated backwards counts less
     own = np.clip(angle, -below, above) * behind * size / (size + POLE_PRIOR * first)
     # A keyed bend is turned to from the limb's own the short way round, continuously in time within
-    # each stretch of frames where the limb is bent (the two blended as plain angles once spun an
+    # each stretch of frames the key is trusted on (the two blended as plain angles once spun an
     # elbow through 317 degrees in 5 frames before a key, and one wrapping from +180 to -180 degrees
     # while the key's weight eased out swung an elbow 8 cm in a frame; carried on across a straight
     # frame, after an arms-up key, the turn went the long way round at 60 degrees a frame), and only
