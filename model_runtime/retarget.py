@@ -162,34 +162,8 @@ def joint_deltas(rig, targets, pinned=None, foot_turns=None, hips_on_path=False,
     optional: each foot's pitch, toes down (radians), as it rolls onto its toes.
     """
     start, frames = rig.joints, len(targets)
-    deltas = {}
-
-    def carried(joint):  # delta of the mapped bone that carries this joint's bone
-        driver = rig.drivers.get(rig.bones[joint])
-        owner = next((j for j, b in rig.bones.items() if b == driver), None)
-        return deltas[owner] if owner is not None else np.broadcast_to(np.eye(4), (frames, 4, 4))
-
-    def head(joint):
-        return rig.matrices[rig.bones[joint]][:3, 3]
-
-    across = lambda pose, l, r: pose[..., J[l], :] - pose[..., J[r], :]
-    up = lambda pose: pose[..., J["Thorax"], :] - pose[..., J["Hip"], :]
-    hips, shoulders = steady_across(start, targets, pinned)
-    pelvis = frame(hips, up(targets)) @ frame(  # the hips exactly, then the lean
-        across(start, "LHip", "RHip"), up(start)).T
-    free = np.ones(len(targets)) if pinned is None else 1.0 - pinned[:, J["Hip"]]
-    trunk = _rigid(pelvis, start[J["Hip"]], targets[:, J["Hip"]])
-    if "Spine" not in rig.bones and pinned is not None:
-        trunk, targets = _trunk_to_hands(rig, targets, trunk, pinned)
-    deltas["Hip"] = _reach_feet(rig, targets, trunk, free, hips_on_path)
-    if "Spine" in rig.bones:
-        chest = frame(up(targets), shoulders) @ frame(
-            up(start), across(start, "LShoulder", "RShoulder")).T
-        deltas["Spine"] = _rigid(chest, head("Spine"), _apply(carried("Spine"), head("Spine")))
-        if pinned is not None:
-            leaned = _lean_to_hands(rig, targets, deltas["Spine"], head("Spine"), pinned)
-            targets = _free_arms_carried(targets, leaned @ _rigid_inverse(deltas["Spine"]), pinned)
-            deltas["Spine"] = leaned
+    deltas, targets, pelvis = _trunk(rig, targets, pinned, hips_on_path)
+    carried = lambda joint: _carried(rig, deltas, joint, frames)
     for joint, child in (("Thorax", "Neck"), ("Neck", "Head")):
         parent = carried(joint)
         pivot = _apply(parent, start[J[joint]])
@@ -210,6 +184,56 @@ def joint_deltas(rig, targets, pinned=None, foot_turns=None, hips_on_path=False,
         deltas.update(_limb(rig, targets, carried(upper), upper, lower, end, turns.get(end), fixed,
                             pitches.get(end)))
     return deltas
+
+
+def _carried(rig, deltas, joint, frames):
+    """The delta (F, 4, 4) of the mapped bone that carries ``joint``'s bone (identity for none)."""
+    driver = rig.drivers.get(rig.bones[joint])
+    owner = next((j for j, b in rig.bones.items() if b == driver), None)
+    return deltas[owner] if owner is not None else np.broadcast_to(np.eye(4), (frames, 4, 4))
+
+
+def _trunk(rig, targets, pinned, hips_on_path):
+    """(deltas of the hips and, where mapped, the spine; targets (F, 17, 3) with the free arms
+    carried by any lean toward a hand; the pelvis's rotation (F, 3, 3)): the part of
+    ``joint_deltas`` that places the shoulders."""
+    start = rig.joints
+    head = lambda joint: rig.matrices[rig.bones[joint]][:3, 3]
+    across = lambda pose, l, r: pose[..., J[l], :] - pose[..., J[r], :]
+    up = lambda pose: pose[..., J["Thorax"], :] - pose[..., J["Hip"], :]
+    hips, shoulders = steady_across(start, targets, pinned)
+    pelvis = frame(hips, up(targets)) @ frame(  # the hips exactly, then the lean
+        across(start, "LHip", "RHip"), up(start)).T
+    free = np.ones(len(targets)) if pinned is None else 1.0 - pinned[:, J["Hip"]]
+    trunk = _rigid(pelvis, start[J["Hip"]], targets[:, J["Hip"]])
+    if "Spine" not in rig.bones and pinned is not None:
+        trunk, targets = _trunk_to_hands(rig, targets, trunk, pinned)
+    deltas = {"Hip": _reach_feet(rig, targets, trunk, free, hips_on_path)}
+    if "Spine" in rig.bones:
+        chest = frame(up(targets), shoulders) @ frame(
+            up(start), across(start, "LShoulder", "RShoulder")).T
+        deltas["Spine"] = _rigid(chest, head("Spine"), _apply(_carried(rig, deltas, "Spine", len(targets)),
+                                                             head("Spine")))
+        if pinned is not None:
+            leaned = _lean_to_hands(rig, targets, deltas["Spine"], head("Spine"), pinned)
+            targets = _free_arms_carried(targets, leaned @ _rigid_inverse(deltas["Spine"]), pinned)
+            deltas["Spine"] = leaned
+    return deltas, targets, pelvis
+
+
+def hands_missed(rig, targets, pinned=None, hips_on_path=False):
+    """How far (F, 2) each hand's target (right, left) lies outside its arm's reach (beyond the
+    straight arm, or within its tightest fold) from where the rig's trunk puts the shoulder, leaned
+    toward it as ``joint_deltas`` leans it: where the rig will miss a hand's curve, at a fraction
+    of the whole retarget's cost. Arguments as ``joint_deltas``."""
+    deltas, _, _ = _trunk(rig, targets, pinned, hips_on_path)
+    missed = []
+    for shoulder, elbow, wrist in LIMBS[2:]:
+        nearest, farthest = _reach_range(*_segments(rig.joints, (shoulder, elbow, wrist)))
+        root = _apply(_carried(rig, deltas, shoulder, len(targets)), rig.joints[J[shoulder]])
+        distance = np.linalg.norm(targets[:, J[wrist]] - root, axis=-1)
+        missed.append(np.maximum(np.maximum(distance - farthest, nearest - distance), 0.0))
+    return np.stack(missed, axis=-1)
 
 
 def steady_across(start, targets, pinned=None):
@@ -357,6 +381,18 @@ def _reach_feet(rig, targets, pelvis, free, hips_on_path=False, rounds=4):
     return pelvis
 
 
+def _segments(start, limb):
+    """The lengths of a limb's (root, middle, end) two segments in the pose ``start`` (17, 3)."""
+    return tuple(np.linalg.norm(start[J[b]] - start[J[a]]) for a, b in zip(limb, limb[1:]))
+
+
+def _reach_range(first, second):
+    """(nearest, farthest): the distances from a limb's root at which a two-bone solve of segments
+    ``first`` and ``second`` puts its end, folded no tighter than TIGHTEST_FOLD_COS."""
+    tightest = np.sqrt(first ** 2 + second ** 2 + 2.0 * first * second * TIGHTEST_FOLD_COS)
+    return max(abs(first - second) + 1e-6, tightest), first + second - 1e-6
+
+
 def _limb(rig, targets, parent, upper, lower, end, heading, fixed, pitch=None):
     """Deltas of a limb's three joints: a two-bone solve toward the end target; a foot keeps its
     initial orientation pitched toes down by ``pitch`` (F,) (None: not) about its own left-right
@@ -364,10 +400,9 @@ def _limb(rig, targets, parent, upper, lower, end, heading, fixed, pitch=None):
     the artist put the middle joint where it is (a key), so its bend is taken as given."""
     start = rig.joints
     root = _apply(parent, start[J[upper]])
-    first, second = (np.linalg.norm(start[J[b]] - start[J[a]]) for a, b in ((upper, lower), (lower, end)))
+    first, second = _segments(start, (upper, lower, end))
     to_end = targets[:, J[end]] - root
-    tightest = np.sqrt(first ** 2 + second ** 2 + 2.0 * first * second * TIGHTEST_FOLD_COS)
-    reach = np.clip(np.linalg.norm(to_end, axis=-1), max(abs(first - second) + 1e-6, tightest), first + second - 1e-6)
+    reach = np.clip(np.linalg.norm(to_end, axis=-1), *_reach_range(first, second))
     along = _unit(to_end)
     initial_upper = start[J[lower]] - start[J[upper]]
     initial_hinge = np.cross(initial_upper, start[J[end]] - start[J[lower]])

@@ -18,6 +18,13 @@ sampling's) while best-of-K error stays about 4 % above plain sampling's (it was
 than four variants in five still come from the sampler. Screening half the
 pool instead of a quarter, or foot sliding as well, cost a fifth of the
 distance; screening none left bones 1.36x as stretched as plain sampling's.
+
+A shot does this twice. Its first window keeps ``played_pool`` candidates this
+way; each is carried through the whole shot and the cleanup, and the N variants
+are then picked from them as they will play (``distinct_as_played``): the
+cleanup takes out the glide that made up half of the decoded candidates'
+distance (feet held planted), so variants spread in the decoded pool came out
+close, and a body that ends out of its hand curve's reach is only visible then.
 numpy only, so Blender needs no torch.
 """
 
@@ -32,6 +39,10 @@ PRIOR_POOL_FACTOR = 5  # plain prior draws per variant added to the diverse samp
 SCREENED_SHARE = 0.25  # least plausible share of the pool dropped before selection
 GIVEN_POOL_FACTOR = 2  # prior draws per variant where joints are given (``most_plausible``)
 ANGLE_WEIGHT = 2.0  # cost of one joint angle outside its limits on every frame (a pool-median stretch costs 1)
+PLAYED_POOL = 15  # candidates a shot carries to the end, at the least, to pick its variants from as played
+PLAYED_POOL_FACTOR = 1.5  # ... and per variant asked for
+MISS_TOLERANCE = 0.01  # a hand this far off its curve or key on the rig (in arm lengths) misses it
+MISS_WEIGHT = 100.0  # cost of a hand missing its curve or key on the rig by an arm's length on the worst frame
 
 
 def _relative(values):
@@ -59,9 +70,39 @@ def implausibility(candidates, initial, given=None, known=None, limits=None):
     return cost
 
 
-def typical_first_spread(candidates, count):
+def played_pool(count):
+    """How many candidates a shot of ``count`` variants carries to the end (``distinct_as_played``)."""
+    return max(PLAYED_POOL, int(np.ceil(PLAYED_POOL_FACTOR * count)))
+
+
+def played_distances(motion):
+    """Mean joint distances (P, P) between motions (P, F, 17, 3) as played: absolute positions,
+    as an artist compares them (and as ``animation_quality.spread`` measures them)."""
+    distances = np.zeros((len(motion), len(motion)))
+    for index in range(len(motion) - 1):
+        distances[index, index + 1:] = np.linalg.norm(motion[index + 1:] - motion[index], axis=-1).mean(axis=(1, 2))
+    return distances + distances.T
+
+
+def distinct_as_played(motion, initial, count, missed, limits=None):
+    """Indices (count,) into cleaned-up candidates (P, F, 17, 3), P >= count, at the scene's rate:
+    those whose hands stay on their curves and keys on the rig (``missed`` (P,): the worst miss,
+    in arm lengths; any that miss by more than MISS_TOLERANCE only where too few others remain)
+    and that are otherwise plausible (``implausibility``), the least plausible SCREENED_SHARE
+    dropped, then ``typical_first_spread`` by their distances as played. One hand curve, seeds
+    0-5, mannequin / Rigify: the hand's worst frame off a 10 s wave's curve 0.5 / 0.6 cm (3.2 /
+    2.3 picked from the decoded pool), 5 variants of a reach 0.117 / 0.153 m apart (0.110 / 0.142)."""
+    cost = implausibility(motion, initial, limits=limits) + MISS_WEIGHT * missed
+    reaching = missed <= MISS_TOLERANCE
+    kept = max(count, min(len(motion) - int(round(SCREENED_SHARE * len(motion))), int(reaching.sum())))
+    order = np.lexsort((cost, ~reaching))[:kept]  # those that reach first, each group by its cost
+    return order[typical_first_spread(motion[order], count, played_distances(motion[order]))]
+
+
+def typical_first_spread(candidates, count, distances=None):
     """Indices (count,) of candidates (P, T, 17, 3), P >= count, as far apart as typical-first
-    greedy picking allows, in the DLow protocol (root-relative poses).
+    greedy picking allows, in the DLow protocol (root-relative poses), or by ``distances`` (P, P)
+    where given.
 
     Candidates are visited from the most typical (least mean distance to the others) outwards and
     taken unless closer than r to one already taken; r is the widest of the pool's pairwise
@@ -70,7 +111,8 @@ def typical_first_spread(candidates, count):
     then at least r apart, as with farthest-point picking, but the variants are the typical ones
     that allow it rather than the pool's outliers, so one of them stays near the likely motion.
     """
-    distances = metrics.pairwise_distances(metrics.to_protocol(candidates))
+    if distances is None:
+        distances = metrics.pairwise_distances(metrics.to_protocol(candidates))
     order = np.argsort(distances.mean(axis=1), kind="stable")
 
     def taken(radius):

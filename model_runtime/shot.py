@@ -25,9 +25,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import cleanup, footsteps, generation, retarget
+from . import cleanup, footsteps, generation, retarget, selection
 from .filters import smoothstep
-from .skeleton import FEET, JOINT_INDEX, NUM_JOINTS, indices, lower_ankle_height
+from .skeleton import FEET, JOINT_INDEX, LIMBS, NUM_JOINTS, indices, limb_length, lower_ankle_height
 
 J = JOINT_INDEX
 
@@ -354,18 +354,21 @@ def to_armature(world_to_armature, points):
 
 def run(request, model, sampler=None, progress=None, given=None):
     """The request's variants (a Result). ``sampler``: the diverse sampler, whose pool of draws is
-    screened for plausibility and for following the curves and keys, then spread (``selection``):
-    with one hand curve the prior's own draws stayed 0.06 m apart, the sampler's 0.24 m;
+    screened for plausibility and for following the curves and keys, then spread (``selection``);
+    the candidates kept are carried through the shot and its cleanup and the variants picked
+    among them as played (``selection.distinct_as_played``);
     ``progress(fraction)`` is called as the work goes on and may raise to stop it; ``given``: the
     request's ``checked_input`` where the caller has it already."""
     report = progress or (lambda fraction: None)
     given = given or checked_input(request)
-    motion, planted = generation.generate(model, given.initial, given.trajectories, given.mask, request.count,
+    # candidates to pick the variants from as they play; a walk's variants each take their own planned path
+    pool = request.count if given.trajectories.ndim == 4 else selection.played_pool(request.count)
+    motion, planted = generation.generate(model, given.initial, given.trajectories, given.mask, pool,
                                           np.random.default_rng(request.seed), request.diversity, sampler,
                                           progress=lambda fraction: report(INFERENCE_SHARE * fraction))
     frames = len(request.frames)
-    scene_rate = np.empty((request.count, frames, NUM_JOINTS, 3))
-    for index in range(request.count):  # one variant at a time: resampling makes copies
+    scene_rate = np.empty((pool, frames, NUM_JOINTS, 3))
+    for index in range(pool):  # one candidate at a time: resampling makes copies
         scene_rate[index] = generation.to_scene_rate(motion[index].astype(np.float64), frames, request.fps)
     del motion
     planted = generation.to_scene_rate(planted[..., None], frames, request.fps)[..., 0]
@@ -380,7 +383,6 @@ def run(request, model, sampler=None, progress=None, given=None):
         pitches = footsteps.toes_down(walks.pitches, ankles, _foot_length(request, given.placement))
     report(INFERENCE_SHARE)  # a chance to stop before the retarget
     world = given.placement.to_world(scene_rate)
-    del scene_rate
     if not np.isfinite(world).all():
         raise InputError("the model returned motion that is not a number for this input; nothing was written")
     followed = {joint: path for joint, path in given.targets.items() if given.axes[joint].all()}
@@ -388,13 +390,20 @@ def run(request, model, sampler=None, progress=None, given=None):
     # the rig's own pose first: the hips held as at the start, the legs bent to LEG_REACH after it
     start = 1.0 - smoothstep(np.arange(frames) / max(cleanup.START_EASE_S * request.fps, 1.0))
     pinned[:, J["Hip"]] = np.maximum(pinned[:, J["Hip"]], start)
+    world_to_armature = np.linalg.inv(request.armature_to_world)
+    hips_on_path = "Hip" in given.axes and not given.axes["Hip"][2]
+    if pool > request.count:
+        missed = _hands_missed(request.rig, [to_armature(world_to_armature, motion) for motion in world], pinned,
+                               hips_on_path)
+        chosen = selection.distinct_as_played(scene_rate, given.initial, request.count, missed, model.angle_limits)
+        world, contacts, turns = world[chosen], contacts[chosen], turns[chosen]
+    del scene_rate
     turns = turns - _yaw(request.armature_to_world)[None, :, None]  # the feet's turns in armature space
     world_scale = np.abs(np.linalg.det(request.armature_to_world[:, :3, :3])) ** (1.0 / 3.0)  # (F or 1,)
-    world_to_armature = np.linalg.inv(request.armature_to_world)
     channels, shortfall = [], []
     for index in range(request.count):
         deltas = retarget.joint_deltas(request.rig, to_armature(world_to_armature, world[index]), pinned,
-                                       turns[index], hips_on_path="Hip" in given.axes and not given.axes["Hip"][2],
+                                       turns[index], hips_on_path=hips_on_path,
                                        foot_pitches=None if pitches is None else pitches[index])
         keys = retarget.key_channels(retarget.bone_bases(request.rig, deltas), request.rotation_modes,
                                      request.root_bone)
@@ -407,6 +416,15 @@ def run(request, model, sampler=None, progress=None, given=None):
             for joint, path in given.targets.items()})
         report(INFERENCE_SHARE + (1.0 - INFERENCE_SHARE) * (index + 1) / request.count)
     return Result(world, contacts, given.targets, given.axes, channels, shortfall, _nearest_other(world))
+
+
+def _hands_missed(rig, candidates, pinned, hips_on_path):
+    """Per candidate (P,): how far its curves and keys miss a hand on the rig on the worst frame, in
+    arm lengths (``retarget.hands_missed``); candidates (P, F, 17, 3) in armature space."""
+    arms = np.array([limb_length(rig.joints, arm) for arm in LIMBS[2:]])
+    held = pinned[:, [J[arm[-1]] for arm in LIMBS[2:]]]  # (F, 2): free hands keep their pose against the shoulder
+    return np.array([(held * retarget.hands_missed(rig, joints, pinned, hips_on_path) / arms).max()
+                     for joints in candidates])
 
 
 def _foot_length(request, placement):

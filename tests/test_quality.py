@@ -77,8 +77,9 @@ def test_a_hand_curve_within_reach_is_met_on_a_rig_whose_trunk_turns_as_one(scen
     the hips toward the hand (``retarget._trunk_to_hands``). Unleaned, the rig kept the hips' turn
     while the model's chest leaned toward the curve, and the 300-frame wave's hand, its arm
     straight, missed the curve: in these three variants by 0.1 / 4.3 / 0.5 cm on average and up to
-    12.6 cm; now 0.1 / 0.6 / 0.2 cm and up to 3.9 cm (the lean stops at MAX_TRUNK_LEAN_TO_HAND,
-    and the add-on says on which frames the curve is beyond reach)."""
+    12.6 cm; leaned, up to 3.9 cm where the lean stops at MAX_TRUNK_LEAN_TO_HAND; now at most
+    0.4 cm, the variants picked among candidates whose hands the rig keeps on the curve
+    (``selection.distinct_as_played``)."""
     scene.render.fps = FPS
     scene.frame_end = 300
     rig = blender_rigs.rigify_rig(scene)
@@ -92,7 +93,7 @@ def test_a_hand_curve_within_reach_is_met_on_a_rig_whose_trunk_turns_as_one(scen
     missed = np.linalg.norm(played[:, :, JOINT_INDEX["RWrist"]] - on_curve, axis=-1)  # (V, F)
     print(f"Rigify wave: hand off its curve by {np.round(100 * missed.mean(axis=1), 1)} cm on average, "
           f"{np.round(100 * missed.max(axis=1), 1)} cm at worst")
-    assert missed.mean(axis=1).max() < 0.01 and missed.max() < 0.05
+    assert missed.mean(axis=1).max() < 0.01 and missed.max() < 0.02
 
 
 def test_blocking_keys_are_approached_not_snapped(scene, mannequin):
@@ -121,10 +122,14 @@ def test_variants_with_one_hand_curve_are_apart_and_on_the_curve(scene, mannequi
     played = np.array([joints for joints, _ in _played(scene, mannequin, report)])
     spread = animation_quality.spread(played)
     spikes = [animation_quality.pops(joints, FPS)[1] for joints in played]
+    missed = np.linalg.norm(played[:, :, JOINT_INDEX["RWrist"]] - generation.curve_samples(curves["RWrist"], 89, 89),
+                            axis=-1)
     print(f"one hand curve: 5 variants {spread:.3f} m apart; worst frames {np.round(spikes, 1)}x the median; "
-          f"curve error as played {[round(100 * e, 2) for e in report.curve_error_m]} cm")
-    # issue 15 asks for 0.15 m; the contact-aware model's variants spread 0.08 m (0.24 before it)
-    assert spread >= 0.05 and all(error < 0.01 for error in report.curve_error_m)
+          f"hand off the curve as played by {np.round(100 * missed.max(axis=1), 2)} cm at worst")
+    # issue 15 asks for 0.15 m; the contact-aware model's variants spread 0.08 m (0.24 before it),
+    # 0.11 with this seed; picked as played, the widest (0.14 m) had a body walking through its
+    # hand's path, the hand 2.9 cm off its curve where it passed the shoulder
+    assert spread >= 0.10 and missed.max() < 0.01
     # the third variant's body stopped dead where the second window's carried frames end: 12.7x, now
     # 6.1x (``generation.with_momentum``)
     assert max(spikes) <= 7.0

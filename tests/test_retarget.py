@@ -127,6 +127,25 @@ def test_the_chest_leans_so_a_pinned_hand_beyond_reach_gets_there(motion):
     assert errors["free"] > 0.02 and errors["pinned"] < 0.005, errors
 
 
+def test_the_trunk_alone_tells_how_far_a_pinned_hand_misses_as_the_whole_retarget_does(motion):
+    """``hands_missed`` (the shot's screen of its candidates) against where the whole retarget
+    puts the hand, for a hand 40 cm past its reach (which the chest's lean cannot make up) and
+    for one pulled onto its shoulder (tighter than the elbow folds)."""
+    rig, rest = _plain_rig(motion[0])
+    shoulder, wrist = JOINT_INDEX["LShoulder"], JOINT_INDEX["LWrist"]
+    pinned = np.zeros((len(motion) - 1, len(JOINT_INDEX)))
+    pinned[:, wrist] = 1.0
+    far, near = motion[1:].copy(), motion[1:].copy()
+    away = far[:, wrist] - far[:, shoulder]
+    far[:, wrist] += 0.4 * away / np.linalg.norm(away, axis=-1, keepdims=True)
+    near[:, wrist] = near[:, shoulder] + 0.01 * away / np.linalg.norm(away, axis=-1, keepdims=True)
+    for targets in (far, near):
+        pose = _forward(rest, retarget.bone_bases(rig, retarget.joint_deltas(rig, targets, pinned)))
+        whole = np.linalg.norm(pose["LWrist"][:, :3, 3] - targets[:, wrist], axis=-1)
+        assert whole.min() > 0.01
+        np.testing.assert_allclose(retarget.hands_missed(rig, targets, pinned)[:, 1], whole, atol=1e-4)
+
+
 def test_a_lean_toward_a_hand_at_the_arms_full_reach_changes_gently_instead_of_flickering(motion):
     """A pinned hand hovering about the arm's full reach from the chest (1 % beyond, then 1 % short,
     frame by frame) needs a lean that jumps by about 10 degrees between those frames; the chest's

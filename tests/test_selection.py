@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from model_runtime import joint_angles, metrics, realism, selection
+from model_runtime import animation_quality, joint_angles, metrics, realism, selection
 from model_runtime.skeleton import JOINT_INDEX
 from model_runtime.data import dataset
 
@@ -71,3 +71,19 @@ def test_a_body_outside_the_joint_limits_is_screened_out(pool):
     assert cost[-1] > cost[:-1].max()
     assert len(with_bad) - 1 not in selection.most_plausible(with_bad, initial, 9, limits=limits)
     assert len(with_bad) - 1 in selection.most_plausible(with_bad, initial, 9)
+
+
+def test_variants_are_picked_as_played_and_never_one_that_misses_its_hand_curve(pool):
+    """Among cleaned-up candidates, one a metre from the others would be the widest pick by its
+    distance as played; where its hand would miss its curve on the rig, it is never picked."""
+    candidates, initial = pool
+    away = candidates[3] + np.array([1.0, 0.0, 0.0])  # the same motion a metre to the side
+    with_far = np.concatenate([candidates, away[None]])
+    far = len(with_far) - 1
+    distances = selection.played_distances(with_far)
+    assert np.isclose(distances[0, 1], animation_quality.spread(with_far[:2]))
+    assert far in selection.typical_first_spread(with_far, 5, distances)
+    assert far in selection.distinct_as_played(with_far, initial, 5, np.zeros(len(with_far)))
+    missed = np.zeros(len(with_far))
+    missed[far] = 0.1  # a tenth of the arm short on its worst frame
+    assert far not in selection.distinct_as_played(with_far, initial, 5, missed)
