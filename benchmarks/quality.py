@@ -11,6 +11,8 @@ real capture of ../shared/mocap imported with Blender's own BVH importer and
 measured the same way. Prints one table per rig and writes contact sheets
 (see contact_sheet.py): out/quality_<rig>_<shot>.png and out/quality_capture.png, and the
 README's picture of a walk, docs/walk.png (footprints from the top, a stride from the side).
+With ``--seeds N`` it prints instead the spread and the curve's worst frame of the shots with a
+hand curve over seeds 0..N-1.
 """
 
 import csv
@@ -76,9 +78,10 @@ def _reset(rig):
         bpy.data.objects.remove(obj)
 
 
-def run_shot(rig, scene, frames, setup):
-    """Set a shot up, generate the variants and play them: a contact_sheet.Shot and the keys'
-    error per joint on the key frame ((17,) m, the worst variant's; None without keys)."""
+def run_shot(rig, scene, frames, setup, seed=None):
+    """Set a shot up, generate the variants (``seed``, SEED unless given) and play them: a
+    contact_sheet.Shot and the keys' error per joint on the key frame ((17,) m, the worst
+    variant's; None without keys)."""
     _reset(rig)
     scene.frame_start, scene.frame_end = 1, frames
     curves, key_frame = setup(rig)
@@ -87,7 +90,7 @@ def run_shot(rig, scene, frames, setup):
         api.bind_curve(rig, bones[joint], blender_rigs.curve(scene, joint, points))
     asked, asked_toes = blender_rigs.played(rig, [1] + ([key_frame] if key_frame else []))  # the start and the key
     played = []
-    for action in api.generate_variants(rig, VARIANTS, SEED):
+    for action in api.generate_variants(rig, VARIANTS, SEED if seed is None else seed):
         api.set_active_variant(rig, action)
         played.append(blender_rigs.played(rig, range(1, frames + 1)))
     joints, toes = (np.array(part) for part in zip(*played))
@@ -181,7 +184,28 @@ def table(title, rows):
         print("  ".join([label.ljust(width)] + [row[column].rjust(size) for column, size in zip(columns, sizes)]))
 
 
+def over_seeds(count):
+    """``--seeds N``: the spread and the bound joint's worst frame off its curve of the shots with a
+    hand curve, over seeds 0..N-1 on each rig: a seed's figures move a little with every change."""
+    for name, build in (("mannequin", blender_rigs.mannequin_rig), ("rigify", blender_rigs.rigify_rig)):
+        scene = blender_rigs.fresh_scene()
+        scene.render.fps, scene.render.fps_base = FPS, 1.0
+        rig = build(scene)
+        for label, frames, setup in SHOTS:
+            taken = [run_shot(rig, scene, frames, setup, 0)[0]]
+            if not set(taken[0].curves) - {"Hip"}:
+                continue
+            taken += [run_shot(rig, scene, frames, setup, seed)[0] for seed in range(1, count)]
+            spread, worst = np.array([(quality.spread(shot.joints), curve_error(shot)[1]) for shot in taken]).T
+            print(f"{name} {label} over seeds 0-{count - 1}: spread {spread.mean():.3f} m (least {spread.min():.3f}); "
+                  f"curve's worst frame {100 * worst.mean():.1f} cm (most {100 * worst.max():.1f})", flush=True)
+
+
 def main():
+    if "--seeds" in sys.argv:
+        trajevae_addon.register()
+        over_seeds(int(sys.argv[sys.argv.index("--seeds") + 1]))
+        return
     clock = time.perf_counter()
     trajevae_addon.register()
     limits = realism.load_angle_limits()
