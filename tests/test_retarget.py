@@ -146,6 +146,28 @@ def test_the_trunk_alone_tells_how_far_a_pinned_hand_misses_as_the_whole_retarge
         np.testing.assert_allclose(retarget.hands_missed(rig, targets, pinned)[:, 1], whole, atol=1e-4)
 
 
+def test_a_free_hand_carried_past_its_reach_straightens_the_arm_gently(motion):
+    """A hand moving out along its arm from 0.94 to 1.03 of the arm's length in 3 frames: solved
+    exactly (as a pinned hand is) the elbow snaps onto the straight arm; a free hand's reach is
+    smoothed over frames first (FREE_REACH_SMOOTHING), its elbow accelerating at a fraction of that."""
+    rig, _ = _plain_rig(motion[0])
+    start = motion[0]
+    shoulder, elbow, wrist = (JOINT_INDEX[name] for name in ("LShoulder", "LElbow", "LWrist"))
+    arm = np.linalg.norm(start[elbow] - start[shoulder]) + np.linalg.norm(start[wrist] - start[elbow])
+    way = (start[wrist] - start[shoulder]) / np.linalg.norm(start[wrist] - start[shoulder])
+    share = np.concatenate([np.full(10, 0.94), np.linspace(0.94, 1.03, 4)[1:], np.full(10, 1.03)])
+    targets = np.repeat(start[None], len(share), axis=0)
+    targets[:, wrist] = start[shoulder] + share[:, None] * arm * way
+    targets[:, elbow] = start[shoulder] + 0.5 * share[:, None] * arm * way + 0.05 * np.cross(way, [0.0, 0.0, 1.0])
+    accelerations = {}
+    for name, held in (("pinned", 1.0), ("free", 0.0)):
+        pinned = np.zeros(targets.shape[:2])
+        pinned[:, wrist] = held
+        placed = retarget.achieved_joints(rig, retarget.joint_deltas(rig, targets, pinned))[:, elbow]
+        accelerations[name] = np.linalg.norm(np.diff(placed, 2, axis=0), axis=-1).max()
+    assert accelerations["free"] < 0.5 * accelerations["pinned"], accelerations
+
+
 def test_a_lean_toward_a_hand_at_the_arms_full_reach_changes_gently_instead_of_flickering(motion):
     """A pinned hand hovering about the arm's full reach from the chest (1 % beyond, then 1 % short,
     frame by frame) needs a lean that jumps by about 10 degrees between those frames; the chest's
