@@ -41,6 +41,7 @@ GIVEN_POOL_FACTOR = 2  # prior draws per variant where joints are given (``most_
 ANGLE_WEIGHT = 2.0  # cost of one joint angle outside its limits on every frame (a pool-median stretch costs 1)
 PLAYED_POOL = 15  # candidates a shot carries to the end, at the least, to pick its variants from as played
 PLAYED_POOL_FACTOR = 1.5  # ... and per variant asked for
+SPACING_KEPT = 0.75  # share of typical-first picking's closest pair that the variants picked as played keep
 MISS_TOLERANCE = 0.01  # a hand this far off its curve or key on the rig (in arm lengths) misses it
 MISS_WEIGHT = 100.0  # cost of a hand missing its curve or key on the rig by an arm's length on the worst frame
 
@@ -89,20 +90,41 @@ def distinct_as_played(motion, initial, count, missed, limits=None):
     those whose hands stay on their curves and keys on the rig (``missed`` (P,): the worst miss,
     in arm lengths; any that miss by more than MISS_TOLERANCE only where too few others remain)
     and that are otherwise plausible (``implausibility``), the least plausible SCREENED_SHARE
-    dropped, then ``typical_first_spread`` by their distances as played. One hand curve, seeds
+    dropped, then ``widest_apart`` by their distances as played. One hand curve, seeds
     0-5, mannequin / Rigify: the hand's worst frame off a 10 s wave's curve 0.5 / 0.6 cm (3.2 /
-    2.3 picked from the decoded pool), 5 variants of a reach 0.117 / 0.153 m apart (0.110 / 0.142)."""
+    2.3 picked from the decoded pool), 5 variants of a reach 0.128 / 0.162 m apart (0.110 / 0.142)."""
     cost = implausibility(motion, initial, limits=limits) + MISS_WEIGHT * missed
     reaching = missed <= MISS_TOLERANCE
     kept = max(count, min(len(motion) - int(round(SCREENED_SHARE * len(motion))), int(reaching.sum())))
     order = np.lexsort((cost, ~reaching))[:kept]  # those that reach first, each group by its cost
-    return order[typical_first_spread(motion[order], count, played_distances(motion[order]))]
+    return order[widest_apart(played_distances(motion[order]), count)]
+
+
+def widest_apart(distances, count):
+    """Indices (count,) into P candidates by their distances (P, P), P >= count: the most typical
+    (the medoid) first, then each next the one farthest in sum from those taken, among those no
+    closer to any of them than SPACING_KEPT of the closest pair ``typical_first_spread`` keeps
+    (its own picks where that runs out). Typical-first picking took the typical candidates, which
+    lie closer together than the pool does: a reach's 5 variants 0.113 m apart as played where
+    its 15 candidates lay 0.127 m apart; over seeds 0-5 (mannequin / Rigify) 0.117 / 0.154 m ->
+    0.128 / 0.162, idle 0.23 / 0.29 -> 0.24 / 0.31 (keeping the whole spacing: 0.120 / 0.155)."""
+    typical = typical_first_spread(None, count, distances)
+    closest = distances[np.ix_(typical, typical)][~np.eye(count, dtype=bool)].min() if count > 1 else 0.0
+    spacing = SPACING_KEPT * closest
+    chosen = [int(typical[0])]
+    while len(chosen) < count:
+        allowed = (distances[:, chosen] >= spacing).all(axis=1)
+        allowed[chosen] = False
+        if not allowed.any():
+            return typical
+        chosen.append(int(np.argmax(np.where(allowed, distances[:, chosen].sum(axis=1), -np.inf))))
+    return np.array(chosen)
 
 
 def typical_first_spread(candidates, count, distances=None):
     """Indices (count,) of candidates (P, T, 17, 3), P >= count, as far apart as typical-first
     greedy picking allows, in the DLow protocol (root-relative poses), or by ``distances`` (P, P)
-    where given.
+    where given (``candidates`` then unused).
 
     Candidates are visited from the most typical (least mean distance to the others) outwards and
     taken unless closer than r to one already taken; r is the widest of the pool's pairwise

@@ -87,3 +87,20 @@ def test_variants_are_picked_as_played_and_never_one_that_misses_its_hand_curve(
     missed = np.zeros(len(with_far))
     missed[far] = 0.1  # a tenth of the arm short on its worst frame
     assert far not in selection.distinct_as_played(with_far, initial, 5, missed)
+
+
+def test_the_widest_pick_keeps_the_medoid_and_typical_first_spacing_and_spreads_wider(pool):
+    """``widest_apart`` against ``typical_first_spread`` on the same distances as played, with one
+    candidate standing half a metre off: the same first pick (the medoid), a closest pair no
+    closer than SPACING_KEPT of typical-first's, and the outlying one taken, so a larger mean
+    distance."""
+    candidates, _ = pool
+    with_off = np.concatenate([candidates, (candidates[3] + np.array([0.5, 0.0, 0.0]))[None]])
+    distances = selection.played_distances(with_off)
+    typical = selection.typical_first_spread(None, 5, distances)
+    widest = selection.widest_apart(distances, 5)
+    pairs = lambda chosen: distances[np.ix_(chosen, chosen)][~np.eye(5, dtype=bool)]
+    assert widest[0] == typical[0] == np.argmin(distances.mean(axis=1))
+    assert len(set(widest.tolist())) == 5 and len(with_off) - 1 in widest
+    assert pairs(widest).min() >= selection.SPACING_KEPT * pairs(typical).min()
+    assert pairs(widest).mean() > pairs(typical).mean()
