@@ -92,7 +92,8 @@ def distinct_as_played(motion, initial, count, missed, limits=None):
     and that are otherwise plausible (``implausibility``), the least plausible SCREENED_SHARE
     dropped, then ``widest_apart`` by their distances as played. One hand curve, seeds
     0-5, mannequin / Rigify: the hand's worst frame off a 10 s wave's curve 0.5 / 0.6 cm (3.2 /
-    2.3 picked from the decoded pool), 5 variants of a reach 0.128 / 0.162 m apart (0.110 / 0.142)."""
+    2.3 picked from the decoded pool), 5 variants of a reach 0.126 / 0.162 m apart (about 0.11 /
+    0.14)."""
     cost = implausibility(motion, initial, limits=limits) + MISS_WEIGHT * missed
     reaching = missed <= MISS_TOLERANCE
     kept = max(count, min(len(motion) - int(round(SCREENED_SHARE * len(motion))), int(reaching.sum())))
