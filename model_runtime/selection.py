@@ -41,6 +41,9 @@ GIVEN_POOL_FACTOR = 2  # prior draws per variant where joints are given (``most_
 ANGLE_WEIGHT = 2.0  # cost of one joint angle outside its limits on every frame (a pool-median stretch costs 1)
 PLAYED_POOL = 15  # candidates a shot carries to the end, at the least, to pick its variants from as played
 PLAYED_POOL_FACTOR = 1.5  # ... and per variant asked for
+# ... but no more candidate-frames beyond the variants' own than this: 50 variants of 10,000 frames
+# carrying 25 more took 108 s instead of 37 and peaked at 1.89 GB instead of 1.3 (target 2)
+PLAYED_EXTRA_FRAMES = 6000
 SPACING_KEPT = 0.75  # share of typical-first picking's closest pair that the variants picked as played keep
 MISS_TOLERANCE = 0.01  # a hand this far off its curve or key on the rig (in arm lengths) misses it
 MISS_WEIGHT = 100.0  # cost of a hand missing its curve or key on the rig by an arm's length on the worst frame
@@ -71,9 +74,11 @@ def implausibility(candidates, initial, given=None, known=None, limits=None):
     return cost
 
 
-def played_pool(count):
-    """How many candidates a shot of ``count`` variants carries to the end (``distinct_as_played``)."""
-    return max(PLAYED_POOL, int(np.ceil(PLAYED_POOL_FACTOR * count)))
+def played_pool(count, frames):
+    """How many candidates a shot of ``count`` variants over ``frames`` frames carries to the end
+    (``distinct_as_played``); ``count`` where a long shot has no room for more."""
+    wanted = max(PLAYED_POOL, int(np.ceil(PLAYED_POOL_FACTOR * count)))
+    return count + max(0, min(wanted - count, PLAYED_EXTRA_FRAMES // max(frames, 1)))
 
 
 def played_distances(motion):
@@ -107,8 +112,8 @@ def widest_apart(distances, count):
     closer to any of them than SPACING_KEPT of the closest pair ``typical_first_spread`` keeps
     (its own picks where that runs out). Typical-first picking took the typical candidates, which
     lie closer together than the pool does: a reach's 5 variants 0.113 m apart as played where
-    its 15 candidates lay 0.127 m apart; over seeds 0-5 (mannequin / Rigify) 0.117 / 0.154 m ->
-    0.128 / 0.162, idle 0.23 / 0.29 -> 0.24 / 0.31 (keeping the whole spacing: 0.120 / 0.155)."""
+    its 15 candidates lay 0.127 m apart; over seeds 0-5 (mannequin / Rigify) about 0.117 / 0.154 m
+    -> 0.126 / 0.162, idle 0.23 / 0.29 -> 0.24 / 0.31 (keeping the whole spacing: 0.120 / 0.155)."""
     typical = typical_first_spread(None, count, distances)
     closest = distances[np.ix_(typical, typical)][~np.eye(count, dtype=bool)].min() if count > 1 else 0.0
     spacing = SPACING_KEPT * closest

@@ -362,7 +362,8 @@ def run(request, model, sampler=None, progress=None, given=None):
     report = progress or (lambda fraction: None)
     given = given or checked_input(request)
     # candidates to pick the variants from as they play; a walk's variants each take their own planned path
-    pool = request.count if given.trajectories.ndim == 4 else selection.played_pool(request.count)
+    pool = request.count if given.trajectories.ndim == 4 else selection.played_pool(request.count,
+                                                                                      len(request.frames))
     motion, planted = generation.generate(model, given.initial, given.trajectories, given.mask, pool,
                                           np.random.default_rng(request.seed), request.diversity, sampler,
                                           progress=lambda fraction: report(INFERENCE_SHARE * fraction))
