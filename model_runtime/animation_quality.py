@@ -126,12 +126,20 @@ def knee_inward_degrees(joints):
     return np.stack(out, axis=1)
 
 
+def mean_joint_distances(variants):
+    """Mean joint distances (V, V) (m) between variants (V, F, J, 3), absolute positions as an
+    artist compares them."""
+    distances = np.zeros((len(variants), len(variants)))
+    for index in range(len(variants) - 1):
+        distances[index, index + 1:] = np.linalg.norm(variants[index + 1:] - variants[index], axis=-1).mean(axis=(1, 2))
+    return distances + distances.T
+
+
 def spread(variants):
     """Mean over pairs of variants (V, F, J, 3) of their mean joint distance (m); 0 for one."""
-    count = len(variants)
-    pairs = [np.linalg.norm(variants[a] - variants[b], axis=-1).mean()
-             for a in range(count) for b in range(a + 1, count)]
-    return float(np.mean(pairs)) if pairs else 0.0
+    if len(variants) < 2:
+        return 0.0
+    return float(mean_joint_distances(variants)[np.triu_indices(len(variants), 1)].mean())
 
 
 def _dense(path, spacing=0.01):

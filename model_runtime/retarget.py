@@ -415,9 +415,10 @@ def _limb(rig, targets, parent, upper, lower, end, heading, fixed, pitch=None, f
     root = _apply(parent, start[J[upper]])
     first, second = _segments(start, (upper, lower, end))
     to_end = targets[:, J[end]] - root
-    reach = np.clip(np.linalg.norm(to_end, axis=-1), *_reach_range(first, second))
+    nearest, farthest = _reach_range(first, second)
+    reach = np.clip(np.linalg.norm(to_end, axis=-1), nearest, farthest)
     if free is not None:
-        reach = np.clip(reach + free ** 2 * (smooth(reach, FREE_REACH_SMOOTHING) - reach), *_reach_range(first, second))
+        reach = np.clip(reach + free ** 2 * (smooth(reach, FREE_REACH_SMOOTHING) - reach), nearest, farthest)
     along = _unit(to_end)
     initial_upper = start[J[lower]] - start[J[upper]]
     initial_hinge = np.cross(initial_upper, start[J[end]] - start[J[lower]])

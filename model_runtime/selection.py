@@ -31,6 +31,7 @@ numpy only, so Blender needs no torch.
 import numpy as np
 
 from . import joint_angles, metrics
+from .animation_quality import mean_joint_distances
 from .masks import per_coordinate
 from .skeleton import rigid_bone_lengths
 
@@ -81,15 +82,6 @@ def played_pool(count, frames):
     return count + max(0, min(wanted - count, PLAYED_EXTRA_FRAMES // max(frames, 1)))
 
 
-def played_distances(motion):
-    """Mean joint distances (P, P) between motions (P, F, 17, 3) as played: absolute positions,
-    as an artist compares them (and as ``animation_quality.spread`` measures them)."""
-    distances = np.zeros((len(motion), len(motion)))
-    for index in range(len(motion) - 1):
-        distances[index, index + 1:] = np.linalg.norm(motion[index + 1:] - motion[index], axis=-1).mean(axis=(1, 2))
-    return distances + distances.T
-
-
 def distinct_as_played(motion, initial, count, missed, limits=None):
     """Indices (count,) into cleaned-up candidates (P, F, 17, 3), P >= count, at the scene's rate:
     those whose hands stay on their curves and keys on the rig (``missed`` (P,): the worst miss,
@@ -103,7 +95,7 @@ def distinct_as_played(motion, initial, count, missed, limits=None):
     reaching = missed <= MISS_TOLERANCE
     kept = max(count, min(len(motion) - int(round(SCREENED_SHARE * len(motion))), int(reaching.sum())))
     order = np.lexsort((cost, ~reaching))[:kept]  # those that reach first, each group by its cost
-    return order[widest_apart(played_distances(motion[order]), count)]
+    return order[widest_apart(mean_joint_distances(motion[order]), count)]
 
 
 def widest_apart(distances, count):

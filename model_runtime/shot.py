@@ -393,17 +393,18 @@ def run(request, model, sampler=None, progress=None, given=None):
     pinned[:, J["Hip"]] = np.maximum(pinned[:, J["Hip"]], start)
     world_to_armature = np.linalg.inv(request.armature_to_world)
     hips_on_path = "Hip" in given.axes and not given.axes["Hip"][2]
+    armature = [to_armature(world_to_armature, motion) for motion in world]  # (P, F, 17, 3)
     if pool > request.count:
-        missed = _hands_missed(request.rig, [to_armature(world_to_armature, motion) for motion in world], pinned,
-                               hips_on_path)
+        missed = _hands_missed(request.rig, armature, pinned, hips_on_path)
         chosen = selection.distinct_as_played(scene_rate, given.initial, request.count, missed, model.angle_limits)
         world, contacts, turns = world[chosen], contacts[chosen], turns[chosen]
+        armature = [armature[index] for index in chosen]
     del scene_rate
     turns = turns - _yaw(request.armature_to_world)[None, :, None]  # the feet's turns in armature space
     world_scale = np.abs(np.linalg.det(request.armature_to_world[:, :3, :3])) ** (1.0 / 3.0)  # (F or 1,)
     channels, shortfall = [], []
     for index in range(request.count):
-        deltas = retarget.joint_deltas(request.rig, to_armature(world_to_armature, world[index]), pinned,
+        deltas = retarget.joint_deltas(request.rig, armature[index], pinned,
                                        turns[index], hips_on_path=hips_on_path,
                                        foot_pitches=None if pitches is None else pitches[index])
         keys = retarget.key_channels(retarget.bone_bases(request.rig, deltas), request.rotation_modes,

@@ -80,7 +80,7 @@ def test_variants_are_picked_as_played_and_never_one_that_misses_its_hand_curve(
     away = candidates[3] + np.array([1.0, 0.0, 0.0])  # the same motion a metre to the side
     with_far = np.concatenate([candidates, away[None]])
     far = len(with_far) - 1
-    distances = selection.played_distances(with_far)
+    distances = animation_quality.mean_joint_distances(with_far)
     assert np.isclose(distances[0, 1], animation_quality.spread(with_far[:2]))
     assert far in selection.typical_first_spread(with_far, 5, distances)
     assert far in selection.distinct_as_played(with_far, initial, 5, np.zeros(len(with_far)))
@@ -96,7 +96,7 @@ def test_the_widest_pick_keeps_the_medoid_and_typical_first_spacing_and_spreads_
     distance."""
     candidates, _ = pool
     with_off = np.concatenate([candidates, (candidates[3] + np.array([0.5, 0.0, 0.0]))[None]])
-    distances = selection.played_distances(with_off)
+    distances = animation_quality.mean_joint_distances(with_off)
     typical = selection.typical_first_spread(None, 5, distances)
     widest = selection.widest_apart(distances, 5)
     pairs = lambda chosen: distances[np.ix_(chosen, chosen)][~np.eye(5, dtype=bool)]
