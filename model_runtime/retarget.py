@@ -232,15 +232,16 @@ def _trunk(rig, targets, pinned, hips_on_path):
     return deltas, targets, pelvis
 
 
-def hands_missed(rig, targets, pinned=None, hips_on_path=False):
+def hands_missed(rig, targets, pinned=None, hips_on_path=False, tightest_fold_cos=TIGHTEST_FOLD_COS):
     """How far (F, 2) each hand's target (right, left) lies outside its arm's reach (beyond the
-    straight arm, or within its tightest fold) from where the rig's trunk puts the shoulder, leaned
-    toward it as ``joint_deltas`` leans it: where the rig will miss a hand's curve, at a fraction
-    of the whole retarget's cost. Arguments as ``joint_deltas``."""
+    straight arm, or within the fold at ``tightest_fold_cos``, by default the tightest the retarget
+    allows) from where the rig's trunk puts the shoulder, leaned toward it as ``joint_deltas``
+    leans it: where the rig will miss a hand's curve, at a fraction of the whole retarget's cost.
+    Other arguments as ``joint_deltas``."""
     deltas, _, _ = _trunk(rig, targets, pinned, hips_on_path)
     missed = []
     for shoulder, elbow, wrist in LIMBS[2:]:
-        nearest, farthest = _reach_range(*_segments(rig.joints, (shoulder, elbow, wrist)))
+        nearest, farthest = _reach_range(*_segments(rig.joints, (shoulder, elbow, wrist)), tightest_fold_cos)
         root = _apply(_carried(rig, deltas, shoulder, len(targets)), rig.joints[J[shoulder]])
         distance = np.linalg.norm(targets[:, J[wrist]] - root, axis=-1)
         missed.append(np.maximum(np.maximum(distance - farthest, nearest - distance), 0.0))
@@ -397,10 +398,11 @@ def _segments(start, limb):
     return tuple(np.linalg.norm(start[J[b]] - start[J[a]]) for a, b in zip(limb, limb[1:]))
 
 
-def _reach_range(first, second):
+def _reach_range(first, second, tightest_fold_cos=TIGHTEST_FOLD_COS):
     """(nearest, farthest): the distances from a limb's root at which a two-bone solve of segments
-    ``first`` and ``second`` puts its end, folded no tighter than TIGHTEST_FOLD_COS."""
-    tightest = np.sqrt(first ** 2 + second ** 2 + 2.0 * first * second * TIGHTEST_FOLD_COS)
+    ``first`` and ``second`` puts its end, folded no tighter than ``tightest_fold_cos`` (the cosine
+    between the bones' directions)."""
+    tightest = np.sqrt(first ** 2 + second ** 2 + 2.0 * first * second * tightest_fold_cos)
     return max(abs(first - second) + 1e-6, tightest), first + second - 1e-6
 
 

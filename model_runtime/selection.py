@@ -47,6 +47,11 @@ PLAYED_POOL_FACTOR = 1.5  # ... and per variant asked for
 PLAYED_EXTRA_FRAMES = 6000
 SPACING_KEPT = 0.75  # share of typical-first picking's closest pair that the variants picked as played keep
 MISS_TOLERANCE = 0.01  # a hand this far off its curve or key on the rig (in arm lengths) misses it
+# ... and so does one its curve or key brings closer to the shoulder than an elbow folded to this
+# cosine between the arm's bones (about 45 degrees inside): of a reach drawn away from the body, the
+# candidate whose body walked into its hand's path folded the arm past that and its elbow whipped
+# round (80 m/s^2, 9x the median frame, on Rigify)
+SCREENED_FOLD_COS = -0.7
 MISS_WEIGHT = 100.0  # cost of a hand missing its curve or key on the rig by an arm's length on the worst frame
 
 
@@ -88,9 +93,10 @@ def distinct_as_played(motion, initial, count, missed, limits=None):
     in arm lengths; any that miss by more than MISS_TOLERANCE only where too few others remain)
     and that are otherwise plausible (``implausibility``), the least plausible SCREENED_SHARE
     dropped, then ``widest_apart`` by their distances as played. One hand curve, seeds
-    0-5, mannequin / Rigify: the hand's worst frame off a 10 s wave's curve 0.5 / 0.6 cm (3.2 /
-    2.3 picked from the decoded pool), 5 variants of a reach 0.126 / 0.162 m apart (about 0.11 /
-    0.14)."""
+    0-5, mannequin / Rigify, with the first window drawn ``generation.GIVEN_SPREAD`` wider: the
+    hand's worst frame off a 10 s wave's curve 1.0 / 0.8 cm (3.2 / 2.3 picked from the decoded
+    pool at the prior's spread, 0.5 / 0.6 as played), 5 variants of a reach 0.156 / 0.180 m apart
+    (0.126 / 0.162 at the prior's spread; about 0.11 / 0.14 picked from the decoded pool)."""
     cost = implausibility(motion, initial, limits=limits) + MISS_WEIGHT * missed
     reaching = missed <= MISS_TOLERANCE
     kept = max(count, min(len(motion) - int(round(SCREENED_SHARE * len(motion))), int(reaching.sum())))

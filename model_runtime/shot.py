@@ -422,11 +422,12 @@ def run(request, model, sampler=None, progress=None, given=None):
 
 def _hands_missed(rig, candidates, pinned, hips_on_path):
     """Per candidate (P,): how far its curves and keys miss a hand on the rig on the worst frame, in
-    arm lengths (``retarget.hands_missed``); candidates (P, F, 17, 3) in armature space."""
+    arm lengths (``retarget.hands_missed``; closer to the shoulder than an elbow folded to
+    ``selection.SCREENED_FOLD_COS`` counts as missing); candidates (P, F, 17, 3) in armature space."""
     arms = np.array([limb_length(rig.joints, arm) for arm in LIMBS[2:]])
     held = pinned[:, [J[arm[-1]] for arm in LIMBS[2:]]]  # (F, 2): free hands keep their pose against the shoulder
-    return np.array([(held * retarget.hands_missed(rig, joints, pinned, hips_on_path) / arms).max()
-                     for joints in candidates])
+    return np.array([(held * retarget.hands_missed(rig, joints, pinned, hips_on_path, selection.SCREENED_FOLD_COS)
+                      / arms).max() for joints in candidates])
 
 
 def _foot_length(request, placement):

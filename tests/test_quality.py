@@ -127,10 +127,12 @@ def test_variants_with_one_hand_curve_are_apart_and_on_the_curve(scene, mannequi
     print(f"one hand curve: 5 variants {spread:.3f} m apart; worst frames {np.round(spikes, 1)}x the median; "
           f"hand off the curve as played by {np.round(100 * missed.max(axis=1), 2)} cm at worst")
     # issue 15 asks for 0.15 m; the contact-aware model's variants spread 0.08 m (0.24 before it),
-    # 0.11 picked from the decoded pool, 0.13 picked as played (``selection.widest_apart``); a
-    # wider pick (0.14 m) had a body walking through its hand's path, the hand 2.9 cm off its
-    # curve where it passed the shoulder, before candidates that miss were screened out
-    assert spread >= 0.12 and missed.max() < 0.01
+    # 0.11 picked from the decoded pool, 0.13 picked as played (``selection.widest_apart``), 0.15
+    # drawn wider where the curve narrows the prior (``generation.GIVEN_SPREAD``; seeds 0-5: 0.156
+    # on average, the least 0.135); a wider pick had a body walking through its hand's path, the
+    # hand 2.9 cm off its curve where it passed the shoulder, before candidates that miss were
+    # screened out
+    assert spread >= 0.14 and missed.max() < 0.01
     # the third variant's body stopped dead where the second window's carried frames end: 12.7x, now
     # 6.1x (``generation.with_momentum``)
     assert max(spikes) <= 7.0
