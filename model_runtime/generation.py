@@ -49,8 +49,9 @@ PELVIS_ROLL_FREE_DEG = 5.0
 PELVIS_ROLL_MOST_DEG = 10.0
 # Where joints are given, the first window draws its latents this much wider than the prior's spread
 # (times the artist's diversity): a curve narrows what the prior allows, and 5 variants of a hand
-# reach, picked as played, lay 0.126 m apart on the mannequin (seeds 0-5; 0.153 at 1.25, 0.163 at
-# 1.35 with worst frames up to 9x the median and 2 % of frames off the joint-angle limits).
+# reach, picked as played, lay 0.126 m apart on the mannequin (seeds 0-5; 0.156 at 1.25 with
+# selection.SCREENED_FOLD_COS; 0.163 at 1.35 without it, worst frames up to 9x the median and 2 % of
+# frames off the joint-angle limits).
 GIVEN_SPREAD = 1.25
 # The joints a later window's start raises to the initial hip height and a carried speed moves: the
 # pelvis and everything above it, the legs below the hip joints staying where they are.
@@ -206,8 +207,9 @@ def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, samp
     initial (17, 3); trajectories (T, 17, 3), or each motion's (count, T, 17, 3), and mask
     (T, 17, 3) or (T, 17) of the coordinates given on each frame after the initial one. The first
     window draws ``count`` latents (with the diverse sampler when given; one per motion for
-    trajectories of their own; ``GIVEN_SPREAD`` wider where joints are given); later windows continue each motion with one prior sample, the
-    body keeping its speed where their carried frames end (``with_momentum``).
+    trajectories of their own; ``GIVEN_SPREAD`` wider where joints are given); later windows
+    continue each motion with one prior sample, the body keeping its speed where their carried
+    frames end (``with_momentum``).
     ``progress(fraction)`` is called after each window (it may raise to stop the work).
     """
     window = model.frames

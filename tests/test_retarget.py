@@ -146,6 +146,26 @@ def test_the_trunk_alone_tells_how_far_a_pinned_hand_misses_as_the_whole_retarge
         np.testing.assert_allclose(retarget.hands_missed(rig, targets, pinned)[:, 1], whole, atol=1e-4)
 
 
+def test_a_hand_held_within_a_screened_fold_counts_as_missed_only_by_that_fold(motion):
+    """A hand pinned where its elbow must fold to cosine -0.8 between the bones: within the
+    retarget's reach (it folds to -0.92), but short of the fold the shot screens candidates with
+    (``selection.SCREENED_FOLD_COS``), by about as much as the two folds' reaches differ (2.9 cm;
+    the rig's rigid trunk puts the shoulder a few millimetres from the motion's)."""
+    rig, _ = _plain_rig(motion[0])
+    shoulder, wrist = JOINT_INDEX["LShoulder"], JOINT_INDEX["LWrist"]
+    pinned = np.zeros((len(motion) - 1, len(JOINT_INDEX)))
+    pinned[:, wrist] = 1.0
+    upper, lower = (np.linalg.norm(motion[0, JOINT_INDEX[b]] - motion[0, JOINT_INDEX[a]])
+                    for a, b in (("LShoulder", "LElbow"), ("LElbow", "LWrist")))
+    reach = lambda cos: np.sqrt(upper ** 2 + lower ** 2 + 2.0 * upper * lower * cos)
+    targets = motion[1:].copy()
+    away = targets[:, wrist] - targets[:, shoulder]
+    targets[:, wrist] = targets[:, shoulder] + reach(-0.8) * away / np.linalg.norm(away, axis=-1, keepdims=True)
+    assert retarget.hands_missed(rig, targets, pinned)[:, 1].max() < 1e-3
+    screened = retarget.hands_missed(rig, targets, pinned, tightest_fold_cos=-0.7)[:, 1]
+    np.testing.assert_allclose(screened, reach(-0.7) - reach(-0.8), atol=0.01)
+
+
 def test_a_free_hand_carried_past_its_reach_straightens_the_arm_gently(motion):
     """A hand moving out along its arm from 0.94 to 1.03 of the arm's length in 3 frames: solved
     exactly (as a pinned hand is) the elbow snaps onto the straight arm; a free hand's reach is
