@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import cleanup, footsteps, generation, retarget, selection
+from .animation_quality import mean_joint_distances
 from .filters import smoothstep
 from .skeleton import FEET, JOINT_INDEX, LIMBS, NUM_JOINTS, indices, limb_length, lower_ankle_height
 
@@ -448,8 +449,10 @@ def _yaw(armature_to_world):
 def _nearest_other(motion):
     """Per variant of motion (V, F, J, 3), the mean joint distance to the nearest other variant,
     on at most COMPARED_FRAMES frames; 0 for a single variant."""
+    if len(motion) < 2:
+        return [0.0] * len(motion)
     frames = motion.shape[1]
     compared = motion[:, np.unique(np.linspace(0, frames - 1, min(frames, COMPARED_FRAMES)).astype(int))]
-    return [min((float(np.linalg.norm(compared[index] - compared[other], axis=-1).mean())
-                 for other in range(len(motion)) if other != index), default=0.0)
-            for index in range(len(motion))]
+    distances = mean_joint_distances(compared)
+    np.fill_diagonal(distances, np.inf)
+    return [float(nearest) for nearest in distances.min(axis=1)]
