@@ -77,7 +77,8 @@ class TrainConfig:
     angle_weight: float = 2.0  # GSPS: squared cosine outside the joint-angle limits, summed over frames
     prior_realism_share: float = 0.5  # weight of the realism terms on the prior sample
     prior_known_weight: float = 1.0  # the prior sample's squared error on the known coordinates
-    body_relative_share: float = 0.0  # of the root's error taken from the other joints' (``body_relative``)
+    body_relative_share: float = 0.0  # of the root's error taken from unknown joints' (``body_relative``)
+    unknown_root_weight: float = 1.0  # scales the root's own error where the root is unknown
     rest_start_share: float = 0.2  # windows whose initial pose is a rest pose (``augment.rest_start``)
     mirror_probability: float = 0.5
     seed: int = 0
@@ -161,11 +162,12 @@ def losses(model, initial, future, mask, contacts, limits, config):
     the product draws prior samples, and with realism alone on them they learned to lag their given
     joints (a given hip moved at 60 % of its speed)."""
     decoded = model(initial, future, mask)
-    squared = body_relative(decoded.reconstruction - future, config.body_relative_share) ** 2
+    difference = decoded.reconstruction - future
+    relative = body_relative(difference, config.body_relative_share, config.unknown_root_weight)
     mask = masks.per_coordinate(mask)
-    known = (squared * mask).flatten(1).sum(-1).mean()
+    known = ((difference ** 2) * mask).flatten(1).sum(-1).mean()
     prior_known = (((decoded.prior_motion - future) ** 2) * mask).flatten(1).sum(-1).mean()
-    unknown = (squared * (1 - mask)).flatten(1).sum(-1).mean()
+    unknown = ((relative ** 2) * (1 - mask)).flatten(1).sum(-1).mean()
     kl = kl_divergence(decoded.posterior, decoded.prior).mean()
     contact = torch.nn.functional.binary_cross_entropy_with_logits(
         decoded.contacts, contacts, reduction="none").flatten(1).sum(-1).mean()
@@ -260,11 +262,12 @@ def root_and_body_error(motion, truth):
     return (body_relative(motion - truth) ** 2).flatten(1).sum(-1)
 
 
-def body_relative(difference, share=1.0):
+def body_relative(difference, share=1.0, root_weight=1.0):
     """Differences (..., J, 3) of poses with ``share`` x the root's difference taken from the other
-    joints': at 1 the root's own error and the pose's apart from it, at 0 absolute positions."""
+    joints': at 1 the root's own error and the pose's apart from it, at 0 absolute positions; the
+    root's row scaled by ``root_weight``."""
     root = difference[..., :1, :]
-    return torch.cat([root, difference[..., 1:, :] - share * root], dim=-2)
+    return torch.cat([root_weight * root, difference[..., 1:, :] - share * root], dim=-2)
 
 
 def train_stage(model, stage):

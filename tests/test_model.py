@@ -164,6 +164,9 @@ def test_reconstructions_score_the_root_apart_from_the_body():
     torch.testing.assert_close(train.root_and_body_error(moved, truth), train.root_and_body_error(truth + shift, truth))
     difference = torch.randn(2, 60, 17, 3)
     torch.testing.assert_close(train.body_relative(difference, 0.0), difference)
+    scaled = train.body_relative(truth + shift - truth, 1.0, 0.3)  # a whole-body shift: the root's row alone
+    torch.testing.assert_close(scaled[..., 0, :], 0.3 * shift.expand(2, 60, 3))
+    torch.testing.assert_close(scaled[..., 1:, :], torch.zeros(2, 60, 16, 3), atol=1e-6, rtol=0)
 
 
 def test_training_runs_checkpoints_resumes_and_its_second_stage_depends_only_on_the_first(tmp_path):
