@@ -122,7 +122,9 @@ poses, partial curves, ground paths and waypoints, and {masks.CARRIED_SHARE:.0%}
 1-{masks.CARRIED_FRAMES} frames whole, as a long shot's later windows do. {train['rest_start_share']:.0%} of the windows whose first
 pose stands start from a rest pose of their own skeleton (T to A, arms 0-50 degrees down)
 and turn into the capture over 15-30 frames, as rigs start in the add-on. Losses: the
-paper's (squared error, KL) plus foot contacts (cross-entropy of the predicted contacts
+paper's (squared error, KL; the error in absolute positions where a coordinate is known and, where
+it is not, with {train.get('body_relative_share', 0.0)} x the root's error taken off the other joints' and the root's own
+at {train.get('unknown_root_weight', 1.0)} x) plus foot contacts (cross-entropy of the predicted contacts
 against labels from the capture's sole height and ankle speed, weight {train['contact_weight']}) and
 GSPS realism on the reconstruction and, at {train['prior_realism_share']} x, on one prior sample per window,
 whose squared error on the known coordinates also counts ({train['prior_known_weight']} x):

@@ -176,9 +176,10 @@ def test_training_runs_checkpoints_resumes_and_its_second_stage_depends_only_on_
     again from the seeded start)."""
     out, checkpoint = tmp_path / "weights", tmp_path / "run.pt"
     common = ["--out", str(out), "--checkpoint", str(checkpoint), "--batch", "8", "--completion-steps", "0"]
-    assert train.main(["--steps", "2", "--fresh", "--beta", "0.003"] + common) == 0
+    assert train.main(["--steps", "2", "--fresh", "--beta", "0.003", "--unknown-root-weight", "0.3"] + common) == 0
     assert {path.name for path in out.iterdir()} == {weights.MODEL_FILE, weights.LIMITS_FILE, weights.CARD_FILE}
     assert weights.load_state(out / weights.MODEL_FILE)[1]["train"]["beta"] == 0.003  # a loss weight from the command
+    assert "root's own\nat 0.3 x" in (out / weights.CARD_FILE).read_text()  # and the card says how it scored
     state = torch.load(checkpoint, weights_only=True)
     assert state["step"] == 2
     first_stage = tmp_path / "first_stage.npz"
