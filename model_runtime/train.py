@@ -160,7 +160,9 @@ def losses(model, initial, future, mask, contacts, limits, config):
     and the realism terms on the reconstruction (its planted feet: the labels) and on the prior sample
     (its planted feet: its own predictions), with the prior sample's error on the known coordinates:
     the product draws prior samples, and with realism alone on them they learned to lag their given
-    joints (a given hip moved at 60 % of its speed)."""
+    joints (a given hip moved at 60 % of its speed). The reconstruction's error counts in absolute
+    positions where a coordinate is known and per ``body_relative_share`` and ``unknown_root_weight``
+    where it is not: the root's travel counted on every joint keeps the pose out of the latents."""
     decoded = model(initial, future, mask)
     difference = decoded.reconstruction - future
     relative = body_relative(difference, config.body_relative_share, config.unknown_root_weight)
