@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import selection
 from .data.clips import NATIVE_FPS
 from .augment import rotate_about_z
 from .filters import smoothstep
@@ -53,6 +54,18 @@ PELVIS_ROLL_MOST_DEG = 10.0
 # selection.SCREENED_FOLD_COS; 0.163 at 1.35 without it, worst frames up to 9x the median and 2 % of
 # frames off the joint-angle limits).
 GIVEN_SPREAD = 1.25
+# A later window that holds given joints (a curve, keys) shared by the motions (candidates the
+# variants are picked from as played, not walks along their own paths) draws CONTINUATION_DRAWS
+# continuations of each motion, CONTINUATION_SPREAD x the prior's spread, and keeps the one farthest
+# from the other motions' that keeps the hands within reach (``selection.continuations_apart``). One draw at the
+# prior's spread: a 10 s wave's 5 variants lay 0.098 / 0.110 m apart (mannequin / Rigify, seeds 0-5)
+# and its hand's worst frame was 1.0 / 0.8 cm off the curve; 4 draws: 0.109 / 0.130 m and 0.8 / 0.6
+# cm (one draw 1.5x wider: 0.108 / 0.119 m, 1.1 / 1.2 cm; 8 draws: 0.118 / 0.127 m, 1.2 / 0.9 cm;
+# 2x wider: 0.123 / 0.134 m, 0.9 / 1.4 cm). Only while the extra draws come to no more than
+# CONTINUATION_EXTRA_FRAMES candidate-frames: 50 variants of 10,000 frames took 170 s instead of 77.
+CONTINUATION_DRAWS = 4
+CONTINUATION_SPREAD = 1.5
+CONTINUATION_EXTRA_FRAMES = 15000
 # The joints a later window's start raises to the initial hip height and a carried speed moves: the
 # pelvis and everything above it, the legs below the hip joints staying where they are.
 PELVIS_AND_ABOVE = indices(UPPER_BODY + ("Hip", "RHip", "LHip"))
@@ -208,8 +221,9 @@ def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, samp
     (T, 17, 3) or (T, 17) of the coordinates given on each frame after the initial one. The first
     window draws ``count`` latents (with the diverse sampler when given; one per motion for
     trajectories of their own; ``GIVEN_SPREAD`` wider where joints are given); later windows
-    continue each motion with one prior sample, the body keeping its speed where their carried
-    frames end (``with_momentum``).
+    continue each motion with one prior sample (where shared joints are given, the one kept of
+    CONTINUATION_DRAWS), the body keeping its speed where their carried frames end
+    (``with_momentum``).
     ``progress(fraction)`` is called after each window (it may raise to stop the work).
     """
     window = model.frames
@@ -240,8 +254,13 @@ def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, samp
             planted = np.zeros((count, 1 + total, feet.shape[-1]), np.float32)
             planted[:, 0] = feet[:, 0]
         else:
-            new, feet = (part[:, 0] for part in _window(model, anchored(motion[:, start], initial), given, known, 1,
-                                                         rng, diversity, None, continuation=True))
+            shared = count > 1 and trajectories.ndim == 3 and mask[start:start + frames].any()  # not walks' own paths
+            draws = 1 + min(CONTINUATION_DRAWS - 1, CONTINUATION_EXTRA_FRAMES // (count * total)) if shared else 1
+            new, feet = _window(model, anchored(motion[:, start], initial), given, known, draws, rng,
+                                diversity * (CONTINUATION_SPREAD if draws > 1 else 1.0), None, continuation=True)
+            pick = (selection.continuations_apart(new[:, :, :frames], initial, given[:, :frames], known[:, :frames],
+                                                  carried) if draws > 1 else np.zeros(count, int))
+            new, feet = new[np.arange(count), pick], feet[np.arange(count), pick]
         new = with_rigid_pelvis(new, initial)
         fade = smoothstep(np.linspace(0.0, 1.0, carried + 2)[1:-1, None])  # no kink where it starts or ends
         motion[:, start + 1:done + 1] = motion[:, start + 1:done + 1] * (1.0 - fade[..., None]) \

@@ -33,7 +33,7 @@ import numpy as np
 from . import joint_angles, metrics
 from .animation_quality import mean_joint_distances
 from .masks import per_coordinate
-from .skeleton import rigid_bone_lengths
+from .skeleton import JOINT_INDEX, LIMBS, limb_length, rigid_bone_lengths
 
 POOL_FACTOR = 5  # diverse sampler draws per variant asked for
 PRIOR_POOL_FACTOR = 5  # plain prior draws per variant added to the diverse sampler's pool
@@ -53,6 +53,9 @@ MISS_TOLERANCE = 0.01  # a hand this far off its curve or key on the rig (in arm
 # round (80 m/s^2, 9x the median frame, on Rigify)
 SCREENED_FOLD_COS = -0.7
 MISS_WEIGHT = 100.0  # cost of a hand missing its curve or key on the rig by an arm's length on the worst frame
+# A later window's continuation keeps each given hand within this share of its arm's length from the
+# continuation's own shoulder (``continuations_apart``): the rig leans and reaches only so far.
+CONTINUATION_REACH_SHARE = 0.97
 
 
 def _relative(values):
@@ -102,6 +105,36 @@ def distinct_as_played(motion, initial, count, missed, limits=None):
     kept = max(count, min(len(motion) - int(round(SCREENED_SHARE * len(motion))), int(reaching.sum())))
     order = np.lexsort((cost, ~reaching))[:kept]  # those that reach first, each group by its cost
     return order[widest_apart(mean_joint_distances(motion[order]), count)]
+
+
+def continuations_apart(draws, initial, given, known, new_from=0):
+    """Index (B,) of one continuation per motion among its draws (B, D, W, 17, 3), model frame: of
+    the draws that keep every given hand within CONTINUATION_REACH_SHARE of its arm from their own
+    shoulder on the frames from ``new_from`` on (where none does, the nearest to it), the one whose
+    frames from ``new_from`` on lie farthest in sum from the other motions' picks, over two rounds
+    from the nearest to reach. A long shot continues each candidate window by window; its variants
+    are picked at the end among candidates that stayed apart and on their curves.
+
+    initial (17, 3) holds the arm lengths; given and known (B, W, 17, 3) as the model's input."""
+    count = len(draws)
+    fresh = draws[:, :, new_from:]  # (B, D, N, 17, 3)
+    excess = np.zeros(draws.shape[:2])
+    for arm in LIMBS[2:]:
+        shoulder, wrist = arm[0], arm[-1]
+        held = known[:, new_from:, JOINT_INDEX[wrist]].max(axis=-1) > 0  # (B, N)
+        distance = np.linalg.norm(given[:, None, new_from:, JOINT_INDEX[wrist]] - fresh[..., JOINT_INDEX[shoulder], :],
+                                  axis=-1)  # (B, D, N)
+        beyond = np.maximum(distance - CONTINUATION_REACH_SHARE * limb_length(initial, arm), 0.0)
+        excess = np.maximum(excess, (beyond * held[:, None]).max(axis=-1, initial=0.0))
+    allowed = excess <= excess.min(axis=1, keepdims=True)
+    pick = np.argmin(excess, axis=1)
+    for _ in range(2):
+        for motion in range(count):
+            others = np.arange(count) != motion
+            apart = np.linalg.norm(fresh[motion][:, None] - fresh[others, pick[others]][None], axis=-1)  # (D, B-1, N, 17)
+            total = apart.mean(axis=(2, 3)).sum(axis=1)
+            pick[motion] = int(np.argmax(np.where(allowed[motion], total, -np.inf)))
+    return pick
 
 
 def widest_apart(distances, count):

@@ -104,3 +104,29 @@ def test_the_widest_pick_keeps_the_medoid_and_typical_first_spacing_and_spreads_
     assert len(set(widest.tolist())) == 5 and len(with_off) - 1 in widest
     assert pairs(widest).min() >= selection.SPACING_KEPT * pairs(typical).min()
     assert pairs(widest).mean() > pairs(typical).mean()
+
+
+def test_a_continuation_keeps_its_hand_within_reach_and_stays_apart_from_the_others(pool):
+    """Three motions, three continuations each (one captured motion stepped aside by up to 0.15 m),
+    the right hand held 0.2 m under the captured shoulder: a draw stepped a metre aside is never
+    kept though it lies farthest from the others; the last motion keeps the draw farthest from the
+    others' picks; where no draw reaches, the nearest to reaching is kept."""
+    candidates, initial = pool
+    shoulder, wrist = JOINT_INDEX["RShoulder"], JOINT_INDEX["RWrist"]
+    aside = np.array([[[0.0, 0.0], [1.0, 0.0], [0.1, 0.0]],
+                      [[0.0, 0.05], [0.0, 0.15], [-0.1, 0.0]],
+                      [[0.05, 0.05], [0.0, -0.12], [0.12, 0.1]]])  # (3 motions, 3 draws, 2) m
+    steps = np.concatenate([aside, np.zeros((3, 3, 1))], axis=-1)[:, :, None, None]
+    draws = candidates[0] + steps  # (3, 3, 60, 17, 3)
+    given = np.zeros((3, 60, 17, 3))
+    known = np.zeros((3, 60, 17, 3))
+    given[:, :, wrist] = candidates[0, :, shoulder] - np.array([0.0, 0.0, 0.2])
+    known[:, :, wrist] = 1.0
+    pick = selection.continuations_apart(draws, initial, given, known, new_from=10)
+    assert pick[0] != 1
+    others = [draws[other, pick[other], 10:] for other in (0, 1)]  # the last motion chose against their picks
+    apart = [sum(np.linalg.norm(draw[10:] - other, axis=-1).mean() for other in others) for draw in draws[2]]
+    assert pick[2] == np.argmax(apart)
+    beyond = draws.copy()
+    beyond[0] += np.array([2.0, 3.0, 1.5])[:, None, None, None] * np.array([1.0, 0.0, 0.0])  # none in reach
+    assert selection.continuations_apart(beyond, initial, given, known, new_from=10)[0] == 2
