@@ -131,8 +131,8 @@ def continuations_apart(draws, initial, given, known, new_from=0):
     for _ in range(2):
         for motion in range(count):
             others = np.arange(count) != motion
-            apart = np.linalg.norm(fresh[motion][:, None] - fresh[others, pick[others]][None], axis=-1)  # (D, B-1, N, 17)
-            total = apart.mean(axis=(2, 3)).sum(axis=1)
+            apart = np.linalg.norm(fresh[motion][:, None] - fresh[others, pick[others]][None], axis=-1)
+            total = apart.mean(axis=(2, 3)).sum(axis=1)  # (D,): summed over the other motions' picks
             pick[motion] = int(np.argmax(np.where(allowed[motion], total, -np.inf)))
     return pick
 
