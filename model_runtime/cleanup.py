@@ -335,6 +335,10 @@ def plant_feet(motion, fps, standing, pinned, initial, predicted, stance=None):
                                        - ankle[start:end + 1])
             out[variant, :, J[foot]] += _layer(frames, plants, held)
             out[variant, :, J[foot], 2] += _lift(frames, plants, ankle[:, 2] - standing)
+            # a free foot never goes below where it stands: a step the shot's end cuts off has no
+            # plant to land on, and the model's foot sank 1 cm under the floor in a wave's last frames
+            height = out[variant, :, J[foot], 2]
+            out[variant, :, J[foot], 2] = np.where(free[:, side], np.maximum(height, standing), height)
             turns[variant, :, side] += _layer(frames, plants, lambda start, end: turn[start] - turn[start:end + 1])
     return out, contacts, turns
 

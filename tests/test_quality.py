@@ -347,6 +347,23 @@ def test_a_foot_hovering_while_the_other_steps_bears_the_body():
     assert contacts[0].any(axis=1).all() and lower.max() < 0.005
 
 
+def test_a_foot_left_in_the_air_at_the_shots_end_does_not_sink_under_the_floor():
+    """The right foot steps off at frame 45 and, with no plant left before the shot ends, comes
+    down 1.5 cm under where it stands: it stops where it stands; a foot the artist's curve takes
+    lower stays on its curve."""
+    motion, initial = _still(60), mannequin_module.REST_JOINTS.astype(np.float64)
+    right = JOINT_INDEX["RFoot"]
+    standing, pinned = initial[right, 2], np.zeros((60, 17))
+    motion[0, 45:, right, 2] += np.maximum(0.1 * np.sin(np.linspace(0.0, 1.2 * np.pi, 15)), -0.015)
+    stance = np.ones((1, 60, 2), dtype=bool)
+    stance[0, 45:, 0] = False  # the right foot's step the shot cuts off
+    out, _, _ = cleanup.plant_feet(motion, FPS, standing, pinned, initial, np.zeros((1, 60, 2)), stance)
+    assert motion[0, -1, right, 2] < standing - 0.01 and out[0, :, right, 2].min() >= standing - 1e-9
+    pinned[50:, right] = 1.0
+    out, _, _ = cleanup.plant_feet(motion, FPS, standing, pinned, initial, np.zeros((1, 60, 2)), stance)
+    assert out[0, -1, right, 2] == pytest.approx(standing - 0.015)
+
+
 def test_feet_left_behind_step_after_the_body_through_a_long_shot():
     frames, initial = 3000, mannequin_module.REST_JOINTS.astype(np.float64)
     motion = _still(frames)
