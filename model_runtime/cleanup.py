@@ -310,7 +310,9 @@ def plant_feet(motion, fps, standing, pinned, initial, predicted, stance=None):
     """(motion, contacts (V, F, 2), foot turns (V, F, 2)), right foot first: each planted ankle
     held where it landed, on the floor, with its foot's turn about Z as it landed. The hold is an
     additive layer on the foot, eased from plant to plant through the step between, so no pop
-    appears where a plant starts or ends. ``pinned`` (F, 17): joints the artist fixed on each
+    appears where a plant starts or ends. A foot in the air never goes below where it stands: a
+    step the shot's end cuts off has no plant to land on, and the model's foot sank 1 cm under the
+    floor in a wave's last frames. ``pinned`` (F, 17): joints the artist fixed on each
     frame, which are never planted; ``initial`` (17, 3) gives the legs' lengths; ``predicted``
     (V, F, 2) the model's planted feet in [0, 1]; ``stance`` (V, F, 2) bool: planned plants, taken
     as they are (no steps cut in)."""
@@ -335,8 +337,6 @@ def plant_feet(motion, fps, standing, pinned, initial, predicted, stance=None):
                                        - ankle[start:end + 1])
             out[variant, :, J[foot]] += _layer(frames, plants, held)
             out[variant, :, J[foot], 2] += _lift(frames, plants, ankle[:, 2] - standing)
-            # a free foot never goes below where it stands: a step the shot's end cuts off has no
-            # plant to land on, and the model's foot sank 1 cm under the floor in a wave's last frames
             height = out[variant, :, J[foot], 2]
             out[variant, :, J[foot], 2] = np.where(free[:, side], np.maximum(height, standing), height)
             turns[variant, :, side] += _layer(frames, plants, lambda start, end: turn[start] - turn[start:end + 1])
