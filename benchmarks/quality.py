@@ -52,13 +52,14 @@ planted: mean horizontal speed of toes within 2 cm of the floor (the lower toe a
 lower toe's highest height above and deepest depth below it. air: frames with both toes over 3 cm up. acc: worst
 joint acceleration; spike: worst frame over median frame. steps: per foot, right/left. lean: hips to neck base from
 vertical. roll: the hip line's tilt from horizontal. swing: the wrists' swing front to back (5th-95th percentile
-from the shoulder). knee-in: knee pointing inward of forward. off-limit: frames outside the joint-angle limits
+from the shoulder). knee-in: knee pointing inward of forward. balance: the centre of mass outside the soles where
+both feet bear weight (toes within 5 cm of the floor). off-limit: frames outside the joint-angle limits
 fitted on the training data. spread: mean pairwise joint distance of the variants. curve: the bound joint to where
 its curve puts it, mean / worst frame. path: the hips' farthest from a ground path; facing: worst angle of the
 body's facing from the path's tangent; hip h: the hips' lowest height over their standing height; seam: the worst
 acceleration within 2 frames of where model windows meet over the worst elsewhere / the same of the means. key:
 worst keyed joint at the key frame / the head top, which the keyed rotation of the head bone places. Over variants:
-float, sink, acc, spike, lean, roll, knee-in and key are the worst, the rest means.
+float, sink, acc, spike, lean, roll, knee-in, balance and key are the worst, the rest means.
 Capture, levelled: the clip with its capture floor levelled as the training data loader levels it; the tilt is
 how far that moved points up or down over the clip."""
 
@@ -127,10 +128,11 @@ def capture(stem):
 
 def figures(shot, limits, error=None):
     """The table's figures for a shot's takes, worst or mean over them as each column says."""
+    takes = list(zip(shot.joints, shot.toes))
     per_take = [(quality.planted_toe_speed(toes, FPS, shot.floor), *quality.floating(toes, shot.floor),
-                 *quality.pops(joints, FPS), quality.steps(toes, shot.floor)) for joints, toes in
-                zip(shot.joints, shot.toes)]
+                 *quality.pops(joints, FPS), quality.steps(toes, shot.floor)) for joints, toes in takes]
     planted, high, airborne, sink, worst, spike, steps = zip(*per_take)
+    balance = [quality.off_balance(joints, toes, shot.floor) for joints, toes in takes]
     return {"planted m/s": f"{np.mean(planted):.2f}", "float cm": f"{100 * max(high):.1f}",
             "air %": f"{100 * np.mean(airborne):.0f}", "sink cm": f"{100 * max(sink):.1f}",
             "acc m/s2": f"{max(worst):.0f}", "spike x": f"{max(spike):.0f}",
@@ -139,6 +141,7 @@ def figures(shot, limits, error=None):
             "roll deg": f"{quality.roll_degrees(shot.joints.reshape(-1, 17, 3)).max():.0f}",
             "swing m": f"{np.mean([quality.arm_swing(joints) for joints in shot.joints]):.2f}",
             "knee-in deg": f"{quality.knee_inward_degrees(shot.joints.reshape(-1, 17, 3)).max():.0f}",
+            "balance cm": f"{100 * max(np.nanmax(off, initial=0.0) for off in balance):.0f}",
             "off-limit %": f"{100 * realism.share_outside_limits(shot.joints, limits):.0f}",
             "spread m": f"{quality.spread(shot.joints):.2f}" if len(shot.joints) > 1 else "-",
             "curve cm": "{:.1f} / {:.1f}".format(*(100 * curve_error(shot))) if set(shot.curves) - {"Hip"} else "-",

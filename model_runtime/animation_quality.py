@@ -1,5 +1,5 @@
 """What an animator sees in a shot, as figures: sliding feet, floating or sinking, pops, steps,
-lean, knee direction, spread between variants (../shared/notes/quality-measures.md).
+lean, knee direction, balance, spread between variants (../shared/notes/quality-measures.md).
 
 Inputs are world positions as Blender plays the rig (metres, Z up): the 17
 joints (F, 17, 3) and the toes (F, 2, 3, right then left: each foot bone's
@@ -7,15 +7,23 @@ tail), at the scene's ``fps``. Pure numpy, so the same figures serve the
 add-on's tests, its benchmark and real capture imported into Blender.
 """
 
+import itertools
+
 import numpy as np
 
-from .skeleton import JOINT_INDEX, facing, hips_roll
+from .skeleton import JOINT_INDEX, centre_of_mass, facing, hips_roll
 
 J = JOINT_INDEX
 PLANTED_BAND_M = 0.02  # a toe this close to the floor is planted
 AIRBORNE_M = 0.03  # both toes higher than this: the body is off the ground
 STEP_LIFT_M = 0.04  # a foot lifted this far above the floor ...
 STEP_LENGTH_M = 0.15  # ... and landing this far away (horizontally) made a step
+# A foot whose toe is this close to the floor bears weight (captured standing feet rock up to 2.5 cm);
+# its sole reaches HEEL_SHARE of the ankle-to-toe length behind the ankle and FOOT_HALF_WIDTH_M to
+# either side of that line (and beyond the toe joint, as the toes do).
+SUPPORT_BAND_M = 0.05
+HEEL_SHARE = 0.35
+FOOT_HALF_WIDTH_M = 0.04
 
 
 def floor_height(toes):
@@ -39,6 +47,39 @@ def floating(toes, floor):
     lower = toes[..., 2].min(axis=1) - floor
     airborne = (toes[..., 2] - floor > AIRBORNE_M).all(axis=1)
     return float(lower.max()), float(airborne.mean()), float(max(0.0, -lower.min()))
+
+
+def off_balance(joints, toes, floor):
+    """Per frame (F,), how far (m) the body's centre of mass lies horizontally outside the soles of
+    both feet where both bear weight (NaN on other frames: a step or a walk falls forward onto
+    the next foot): a standing body keeps it over its feet (captured standing clips of ../shared:
+    0 on every frame, their double supports in walks up to 0.27 m)."""
+    mass = centre_of_mass(joints)[:, :2]
+    out = np.full(len(joints), np.nan)
+    for frame in np.flatnonzero((toes[..., 2] - floor < SUPPORT_BAND_M).all(axis=1)):
+        soles = []
+        for side, ankle in enumerate((J["RFoot"], J["LFoot"])):
+            heel, toe = joints[frame, ankle, :2], toes[frame, side, :2]
+            soles += [heel - HEEL_SHARE * (toe - heel), toe]
+        out[frame] = max(_outside(mass[frame], soles) - FOOT_HALF_WIDTH_M, 0.0)
+    return out
+
+
+def _outside(point, corners):
+    """Distance of a point (2,) from the convex hull of 2-4 corners [(2,)], 0 inside: inside one
+    of their triangles, or else the nearest of the segments between them (its edges among them)."""
+    def cross(a, b, c):
+        return (a[0] - c[0]) * (b[1] - c[1]) - (b[0] - c[0]) * (a[1] - c[1])
+
+    for a, b, c in itertools.combinations(corners, 3):
+        signs = (cross(point, a, b), cross(point, b, c), cross(point, c, a))
+        if min(signs) >= 0.0 or max(signs) <= 0.0:
+            return 0.0
+    distances = []
+    for a, b in itertools.combinations(corners, 2):
+        along = np.clip(np.dot(point - a, b - a) / max(float(np.dot(b - a, b - a)), 1e-12), 0.0, 1.0)
+        distances.append(float(np.linalg.norm(point - a - along * (b - a))))
+    return min(distances)
 
 
 def accelerations(joints, fps):

@@ -5,13 +5,13 @@ the model's frame (metres, Z up, the floor at z = 0 where the rig's toes stood a
 (``carried_by_hips``) and turned to face along a ground path (``facing_the_path``), the torso
 kept from leaning far beyond the start pose (``upright``), the start
 eased out of the rig's pose (``ease_out_of_start``), the body put back on the floor (``on_floor``)
-with its hips kept from sagging far below their start height (``hips_up``),
-carried against its planted feet's slide and kept within reach of its curves
-(``without_slide``), planted feet held still with their heading
-(``plant_feet``; under a ground path, the feet take the planned steps of
-``footsteps``, the body leaning into the walk and the arms swinging against the legs:
-``leaning_into_the_walk``, ``swinging_arms``), eased onto the artist's keys (``ease_onto_keys``), and every
-curve and key met exactly (``pin``). Motions are (V, F, 17, 3).
+with its hips kept from sagging far below their start height (``hips_up``), a foot stepping
+under a body that leaves it (``balancing_steps``), carried against its planted feet's slide and
+kept within reach of its curves (``without_slide``), planted feet held still with their heading
+(``plant_feet``) and the body kept over them (``over_the_feet``; under a ground path, the feet
+take the planned steps of ``footsteps``, the body leaning into the walk and the arms swinging
+against the legs: ``leaning_into_the_walk``, ``swinging_arms``), eased onto the artist's keys
+(``ease_onto_keys``), and every curve and key met exactly (``pin``). Motions are (V, F, 17, 3).
 """
 
 import numpy as np
@@ -20,8 +20,8 @@ from . import footsteps
 from .filters import runs, smooth, smoothstep, window_max, window_min
 from .retarget import steady_across
 from .rotations import turned
-from .skeleton import (FEET, JOINT_INDEX, LIMBS, UPPER_BODY, facing, indices, limb_length, lower_ankle_height,
-                       shortest_leg)
+from .skeleton import (FEET, JOINT_INDEX, JOINT_MASSES, LIMBS, UPPER_BODY, centre_of_mass, facing, indices,
+                       limb_length, lower_ankle_height, shortest_leg)
 
 J = JOINT_INDEX
 # The ground under the body: the lower ankle's height opened (lowest, then highest of the lowest)
@@ -54,6 +54,24 @@ STEP_LIFT_M = 0.06
 REACH_SHARE = 0.7
 REACH_EASE_S = 0.2
 STAND_SHARE = 0.97
+# A standing body keeps its centre of mass over its feet: the model's idle variants stood with it up
+# to 28 cm outside them on a Rigify rig (the hips up to 0.44 m off the feet, straight legs slanted
+# like a plank), which no captured standing clip of ../shared does. Where both feet are planted and
+# the centre of mass lies more than BALANCE_RADIUS_SHARE of a foot (footsteps.FOOT_M, ankle to toe
+# tip) from the line between the soles' middles (SOLE_MIDDLE_SHARE of a foot ahead of the ankles),
+# the foot farther from where it stands under the hips steps there (as the start pose stood; a
+# step of BALANCE_STEP_S, STEP_CLEARANCE_M high: at STEP_S a Rigify knee took it at 107 m/s^2)
+# once it is BALANCE_STEP_SHARE of a foot out; what is left the body above the feet takes,
+# moving horizontally (the knees half as far) from one standing frame's need to the next,
+# smoothed over BALANCE_SMOOTHING_S, in BALANCE_PASSES passes (the smoothing shaves what the
+# worst frames need). A foot's centre of mass share (skeleton.SEGMENT_MASSES) is at its ankle.
+BALANCE_RADIUS_SHARE = 0.3
+SOLE_MIDDLE_SHARE = 0.25
+BALANCE_STEP_SHARE = 0.25
+BALANCE_STEP_S = 0.5
+BALANCE_SMOOTHING_S = 0.25
+BALANCE_PASSES = 3
+BALANCE_CHECK_FRAMES = 64
 # A planted foot left this many legs behind its hip (horizontally) steps: it lifts STEP_CLEARANCE_M
 # for STEP_S and plants again where the body has taken it, ahead of the hip by the hip's travel
 # over the next STEP_S, as a walking foot lands ahead of the body.
@@ -185,25 +203,120 @@ def heading(motion, initial):
     return angle - angle[..., :1]
 
 
-def _contact_flags(motion, fps, standing, pinned, predicted):
-    """Planted frames (V, F, 2) of the right and left ankles (see ``_contacts``)."""
+def _contact_flags(motion, fps, standing, pinned, predicted, lifted=None):
+    """Planted frames (V, F, 2) of the right and left ankles (see ``_contacts``); never those a
+    balancing step lifts (``lifted`` (V, F, 2))."""
     flags = np.zeros(motion.shape[:2] + (2,), dtype=bool)
     for variant in range(len(motion)):
         for side, foot in enumerate(FEET):
-            flags[variant, :, side] = _contacts(motion[variant, :, J[foot]], fps, standing, pinned[:, J[foot]] == 0,
+            free = (pinned[:, J[foot]] == 0) & (True if lifted is None else ~lifted[variant, :, side])
+            flags[variant, :, side] = _contacts(motion[variant, :, J[foot]], fps, standing, free,
                                                 predicted[variant, :, side])
     return flags
 
 
-def without_slide(motion, fps, standing, pinned, initial, targets, predicted, stance=None):
+def _off_balance(motion):
+    """The horizontal move (..., 2) that brings poses' (..., 17, 3) centre of mass within
+    BALANCE_RADIUS_SHARE of a foot of the line between their soles' middles (0 where it is)."""
+    forward = facing(motion)[..., :2]
+    forward /= np.maximum(np.linalg.norm(forward, axis=-1, keepdims=True), 1e-9)
+    soles = motion[..., indices(FEET), :2] + SOLE_MIDDLE_SHARE * footsteps.FOOT_M * forward[..., None, :]
+    right, across = soles[..., 0, :], soles[..., 1, :] - soles[..., 0, :]
+    mass = centre_of_mass(motion)[..., :2]
+    along = np.clip(np.sum((mass - right) * across, axis=-1) / np.maximum(np.sum(across ** 2, axis=-1), 1e-12),
+                    0.0, 1.0)
+    gap = mass - right - along[..., None] * across
+    distance = np.linalg.norm(gap, axis=-1, keepdims=True)
+    return -gap * np.clip(1.0 - BALANCE_RADIUS_SHARE * footsteps.FOOT_M / np.maximum(distance, 1e-9), 0.0, None)
+
+
+def _balancing_steps(motion, both, free, initial, turns, fps):
+    """One variant's motion (F, 17, 3) with a foot stepping under the hips wherever, both feet
+    planted (``both`` (F,)) and free of the artist's curves and keys (``free`` (F, 2)), the centre
+    of mass is BALANCE_STEP_SHARE of a foot out of balance, and the frames (F, 2) each foot is in
+    the air; ``turns`` (F,): the pelvis's turn since the pose ``initial`` (17, 3), whose feet
+    stand under its hips."""
+    out, swinging = motion.copy(), np.zeros((len(motion), 2), dtype=bool)
+    swing = max(2, int(round(BALANCE_STEP_S * fps)))
+    stance = initial[indices(FEET), :2] - initial[J["Hip"], :2]  # (2, 2)
+    may_step = both & free.all(axis=1)
+    may_step[len(out) - swing:] = False  # a step the shot's end would cut short is not taken
+    off = np.zeros(len(out))  # how far out of balance, known up to frame ``known``
+    frame = known = 0
+    while frame < len(out):
+        if frame >= known:  # a stretch at a time: a step moves the foot on every later frame
+            known = frame + BALANCE_CHECK_FRAMES
+            off[frame:known] = np.linalg.norm(_off_balance(out[frame:known]), axis=-1)
+        due = np.flatnonzero(may_step[frame:known] & (off[frame:known] >= BALANCE_STEP_SHARE * footsteps.FOOT_M))
+        if not len(due):
+            frame = known
+            continue
+        frame += due[0]
+        land = frame + swing
+        cos, sin = np.cos(turns[land]), np.sin(turns[land])
+        under = out[land, J["Hip"], :2] + stance @ np.array([[cos, sin], [-sin, cos]])  # (2, 2)
+        moves = under - out[frame, indices(FEET), :2]
+        side = int(np.argmax(np.linalg.norm(moves, axis=-1)))
+        phase = np.linspace(0.0, 1.0, swing + 1)
+        for joint, share in ((J[FEET[side]], 1.0), (J[LIMBS[side][1]], 0.5)):
+            out[frame:land + 1, joint, :2] += share * smoothstep(phase)[:, None] * moves[side]
+            out[land + 1:, joint, :2] += share * moves[side]
+            out[frame:land + 1, joint, 2] += share * STEP_CLEARANCE_M * np.sin(np.pi * phase) ** 2
+        swinging[frame + 1:land, side] = True
+        frame = known = land + 1
+    return out, swinging
+
+
+def balancing_steps(motion, fps, standing, pinned, initial, predicted, steps=True):
+    """(motion, lifted): motion (V, F, 17, 3) with a foot stepping under the hips where, both feet
+    planted, the centre of mass is BALANCE_STEP_SHARE of a foot out of balance (see
+    BALANCE_RADIUS_SHARE); never feet the artist pinned on the frame (``pinned`` (F, 17)), nor
+    without ``steps`` (feet the artist keyed). ``predicted`` (V, F, 2): the model's planted feet
+    in [0, 1]; ``initial`` (17, 3): the rig's balanced start; ``lifted`` (V, F, 2) bool: the
+    frames each step's foot is in the air, low ones included."""
+    free = (pinned[:, indices(FEET)] == 0) & steps
+    both = _contact_flags(motion, fps, standing, pinned, predicted).all(axis=-1)  # (V, F)
+    stepped = [_balancing_steps(variant, flags, free, initial, turn, fps)
+               for variant, flags, turn in zip(motion, both, heading(motion, initial))]
+    return np.stack([variant for variant, _ in stepped]), np.stack([lifted for _, lifted in stepped])
+
+
+def over_the_feet(motion, fps, standing, contacts, pinned):
+    """Motion (V, F, 17, 3) whose body above the feet moves horizontally, the knees half as far,
+    to keep its centre of mass within BALANCE_RADIUS_SHARE of a foot of the line between the
+    soles where both feet are down (planted, ``contacts`` (V, F, 2), or within CONTACT_HEIGHT_M of
+    ``standing``, as a step lands), from one such frame's need to the next; the feet stay, and so
+    do frames whose hips the artist pinned (``pinned`` (F, 17))."""
+    low = motion[..., indices(FEET), 2] - standing < CONTACT_HEIGHT_M
+    both = (contacts | low).all(axis=-1)
+    share = np.ones(motion.shape[2])  # how far each joint moves with the body
+    share[indices(FEET)], share[[J["RKnee"], J["LKnee"]]] = 0.0, 0.5
+    moved = JOINT_MASSES @ share  # the share of its move the centre of mass makes
+    frames = np.arange(motion.shape[1])
+    for _ in range(BALANCE_PASSES):
+        need = _off_balance(motion)  # (V, F, 2)
+        move = np.zeros_like(need)
+        for variant in np.flatnonzero(both.any(axis=1)):
+            standing_frames = np.flatnonzero(both[variant])
+            for axis in range(2):
+                move[variant, :, axis] = np.interp(frames, standing_frames, need[variant, standing_frames, axis])
+        move *= (1.0 - pinned[:, J["Hip"]])[None, :, None] / moved
+        move = _eased_in(np.swapaxes(smooth(np.swapaxes(move, 1, 2), BALANCE_SMOOTHING_S * fps), 1, 2), fps)
+        motion = motion.copy()
+        motion[..., :2] += share[None, None, :, None] * move[:, :, None]
+    return motion
+
+
+def without_slide(motion, fps, standing, pinned, initial, targets, predicted, stance=None, lifted=None):
     """The whole body moved against the slide of its planted feet: while a foot is planted, its
     horizontal drift is the body's, taken out frame by frame (where the hips are not pinned), as
     far as the hands and feet on curves ({joint: (F, 3)}) stay within reach of the body. What
     brings them back within reach is eased over REACH_EASE_S; its upward part raises the body
     above its feet (the legs straighten, up to STAND_SHARE of their length) rather than lifting
     the feet off the floor. ``predicted`` (V, F, 2): the model's planted feet in [0, 1]; ``stance``
-    (V, F, 2) bool: the feet's planned plants, which replace those found in the motion."""
-    planted = _contact_flags(motion, fps, standing, pinned, predicted) if stance is None else stance  # (V, F, 2)
+    (V, F, 2) bool: the feet's planned plants, which replace those found in the motion; ``lifted``
+    (V, F, 2) bool: feet a balancing step lifts, never planted."""
+    planted = _contact_flags(motion, fps, standing, pinned, predicted, lifted) if stance is None else stance
     velocity = np.diff(motion[..., indices(FEET), :2], axis=1)  # (V, F - 1, 2, 2)
     both = planted[:, 1:] & planted[:, :-1]
     slide = (velocity * both[..., None]).sum(-2) / np.maximum(both.sum(-1), 1)[..., None]  # (V, F - 1, 2)
@@ -255,9 +368,9 @@ def _steps_when_left_behind(planted, ankles, hips, legs, fps):
     has moved more than STEP_TRIGGER legs (``legs`` (2,)) away from where the foot was planted (the
     body carried off by a curve or a ground path while the model's feet glide): the foot lifts for
     STEP_S and lands ahead of where it was generated by the hip's travel over the next STEP_S. A
-    foot never starts such a step during the other's, the one left farther behind goes first, so
-    feet carried off together step in turn instead of hopping. Also returns each frame's landing
-    offset (F, 2, 2): nonzero where such a step lands."""
+    foot never starts such a step unless the other stays on the floor all through it, the one left
+    farther behind goes first, so feet carried off together step in turn instead of hopping. Also
+    returns each frame's landing offset (F, 2, 2): nonzero where such a step lands."""
     planted, ahead = planted.copy(), np.zeros(planted.shape + (2,))
     swing = max(2, int(round(STEP_S * fps)))
     since = [0 if planted[0, side] else None for side in range(2)]  # the frame each foot was planted on
@@ -272,7 +385,8 @@ def _steps_when_left_behind(planted, ankles, hips, legs, fps):
             hips[frame, side, :2] - ankles[since[side], side, :2] - ahead[since[side], side]) / legs[side]
             for side in range(2)]
         side = int(np.argmax(behind))
-        if behind[side] > STEP_TRIGGER and frame >= stepping_until[1 - side]:
+        other_down = planted[frame:frame + swing, 1 - side].all()
+        if behind[side] > STEP_TRIGGER and frame >= stepping_until[1 - side] and other_down:
             planted[frame:frame + swing, side] = False
             since[side], landing = None, frame + swing
             stepping_until[side] = landing
@@ -306,7 +420,7 @@ def _lift(frames, plants, height):
     return lift
 
 
-def plant_feet(motion, fps, standing, pinned, initial, predicted, stance=None):
+def plant_feet(motion, fps, standing, pinned, initial, predicted, stance=None, lifted=None):
     """(motion, contacts (V, F, 2), foot turns (V, F, 2)), right foot first: each planted ankle
     held where it landed, on the floor, with its foot's turn about Z as it landed. The hold is an
     additive layer on the foot, eased from plant to plant through the step between, so no pop
@@ -315,11 +429,12 @@ def plant_feet(motion, fps, standing, pinned, initial, predicted, stance=None):
     floor in a wave's last frames. ``pinned`` (F, 17): joints the artist fixed on each
     frame, which are never planted; ``initial`` (17, 3) gives the legs' lengths; ``predicted``
     (V, F, 2) the model's planted feet in [0, 1]; ``stance`` (V, F, 2) bool: planned plants, taken
-    as they are (no steps cut in)."""
+    as they are (no steps cut in); ``lifted`` (V, F, 2) bool: feet a balancing step lifts."""
     out = motion.copy()
     pelvis = heading(motion, initial)
     turns = np.repeat(pelvis[..., None], 2, axis=-1)
-    contacts = _contact_flags(motion, fps, standing, pinned, predicted) if stance is None else stance.copy()
+    contacts = (_contact_flags(motion, fps, standing, pinned, predicted, lifted) if stance is None
+                else stance.copy())
     frames = np.arange(motion.shape[1])
     legs = [limb_length(initial, leg) for leg in LIMBS[:2]]
     feet, free = indices(FEET), pinned[:, indices(FEET)] == 0
@@ -329,7 +444,8 @@ def plant_feet(motion, fps, standing, pinned, initial, predicted, stance=None):
         if stance is None:
             contacts[variant], ahead = _steps_when_left_behind(contacts[variant], motion[variant][:, feet], hips, legs,
                                                                fps)
-            _bearing(contacts[variant], motion[variant][:, feet, 2] - standing, free)
+            _bearing(contacts[variant], motion[variant][:, feet, 2] - standing,
+                     free if lifted is None else free & ~lifted[variant])
         for side, foot in enumerate(FEET):
             ankle, turn = motion[variant, :, J[foot]], pelvis[variant]
             plants = runs(contacts[variant, :, side])
@@ -518,16 +634,21 @@ def tidy(motion, fps, initial, targets, axes, keyed, predicted, walks=None):
     motion = carried_by_hips(motion, targets, axes)
     if "Hip" in targets and not axes["Hip"][2]:  # a ground path: walk facing along it
         motion = facing_the_path(motion, initial, targets["Hip"] if walks is None else walks.routes, fps)
-    stance = None
+    stance = lifted = None
     if walks is not None:
         motion = motion.copy()
         motion[:, :, indices(FEET)] = walks.ankles
         stance = np.stack([footsteps.stance(variant) for variant in walks.ankles])
     motion = upright(motion, initial, fps)
     motion = hips_up(on_floor(ease_out_of_start(motion, fps), fps, standing), initial, fps, standing)
-    motion = without_slide(motion, fps, standing, on_curves, initial, targets, predicted, stance)
-    motion, contacts, turns = plant_feet(motion, fps, standing, on_curves, initial, predicted, stance)
-    if walks is not None:
+    if walks is None:  # a walk's body falls forward from step to step
+        motion, lifted = balancing_steps(motion, fps, standing, on_curves, initial, predicted,
+                                         steps=not set(FEET) & set().union(*keyed.values()))
+    motion = without_slide(motion, fps, standing, on_curves, initial, targets, predicted, stance, lifted)
+    motion, contacts, turns = plant_feet(motion, fps, standing, on_curves, initial, predicted, stance, lifted)
+    if walks is None:
+        motion = over_the_feet(motion, fps, standing, contacts, on_curves)
+    else:
         fixed = set(targets).union(*keyed.values())
         motion = leaning_into_the_walk(motion, np.array([gait.lean for gait in walks.gaits]), fps, initial)
         motion = swinging_arms(motion, np.array([gait.arm_swing for gait in walks.gaits]), fps, initial,

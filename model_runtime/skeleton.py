@@ -57,6 +57,32 @@ UP_AXIS = np.array([0.0, 0.0, 1.0])
 FLOOR_CONTACT_M = 0.05  # an ankle this close to its lowest height in a motion is on the floor
 
 
+# Share of the body's mass in each segment (from joint, to joint), its centre halfway along it
+# (Winter, Biomechanics and Motor Control of Human Movement: head and neck, trunk, upper arm,
+# forearm and hand, thigh, shank; each foot's 0.0145 at its ankle, the joints having no toe).
+SEGMENT_MASSES = ((("Neck", "Head"), 0.081), (("Hip", "Neck"), 0.497)) + tuple(
+    segment for side in "RL" for segment in (
+        ((side + "Shoulder", side + "Elbow"), 0.028), ((side + "Elbow", side + "Wrist"), 0.022),
+        ((side + "Hip", side + "Knee"), 0.100), ((side + "Knee", side + "Foot"), 0.0465),
+        ((side + "Foot", side + "Foot"), 0.0145)))
+
+
+def _joint_masses():
+    """Each segment's share of the mass split between its two end joints: (17,)."""
+    masses = np.zeros(NUM_JOINTS)
+    for (start, end), share in SEGMENT_MASSES:
+        np.add.at(masses, [JOINT_INDEX[start], JOINT_INDEX[end]], 0.5 * share)
+    return masses
+
+
+JOINT_MASSES = _joint_masses()
+
+
+def centre_of_mass(positions):
+    """The body's centre of mass (..., 3) of poses (..., 17, 3), from SEGMENT_MASSES."""
+    return np.einsum("j,...jk->...k", JOINT_MASSES, positions)
+
+
 def indices(names):
     """Indices of joint names, in the given order."""
     return [JOINT_INDEX[name] for name in names]
@@ -108,3 +134,4 @@ def facing(positions):
     forward = np.cross(across, UP_AXIS)
     forward[..., 2] = 0.0
     return forward / np.maximum(np.linalg.norm(forward, axis=-1, keepdims=True), 1e-9)
+
