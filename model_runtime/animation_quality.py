@@ -52,8 +52,8 @@ def floating(toes, floor):
 def off_balance(joints, toes, floor):
     """Per frame (F,), how far (m) the body's centre of mass lies horizontally outside the soles of
     both feet where both bear weight (NaN on other frames: a step or a walk falls forward onto
-    the next foot): a standing body keeps it over its feet (captured standing clips of ../shared:
-    0 on every frame, their double supports in walks up to 0.27 m)."""
+    the next foot): a standing body keeps it over its feet (captured clips of ../shared, standing
+    or walking: within 2 cm of the soles on every such frame)."""
     mass = centre_of_mass(joints)[:, :2]
     out = np.full(len(joints), np.nan)
     for frame in np.flatnonzero((toes[..., 2] - floor < SUPPORT_BAND_M).all(axis=1)):

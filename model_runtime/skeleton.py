@@ -134,4 +134,3 @@ def facing(positions):
     forward = np.cross(across, UP_AXIS)
     forward[..., 2] = 0.0
     return forward / np.maximum(np.linalg.norm(forward, axis=-1, keepdims=True), 1e-9)
-
