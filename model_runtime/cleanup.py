@@ -56,22 +56,26 @@ REACH_EASE_S = 0.2
 STAND_SHARE = 0.97
 # A standing body keeps its centre of mass over its feet: the model's idle variants stood with it up
 # to 28 cm outside them on a Rigify rig (the hips up to 0.44 m off the feet, straight legs slanted
-# like a plank), which no captured standing clip of ../shared does. Where both feet are planted and
-# the centre of mass lies more than BALANCE_RADIUS_SHARE of a foot (footsteps.FOOT_M, ankle to toe
-# tip) from the line between the soles' middles (SOLE_MIDDLE_SHARE of a foot ahead of the ankles),
-# the foot farther from where it stands under the hips steps there (as the start pose stood; a
-# step of BALANCE_STEP_S, STEP_CLEARANCE_M high: at STEP_S a Rigify knee took it at 107 m/s^2)
-# once it is BALANCE_STEP_SHARE of a foot out; what is left the body above the feet takes,
+# like a plank), which no captured standing clip of ../shared does. The soles, in feet
+# (footsteps.FOOT_M, ankle to toe tip): across the body between the ankles and SOLE_SIDE_SHARE
+# beyond, along it from SOLE_BACK_SHARE behind the ankles to SOLE_FRONT_SHARE ahead (about the
+# toe joints, as bench-quality measures on the rig; captured bodies lifting a box reach that far,
+# and are left as they are). Where both feet are planted and the centre of mass is
+# BALANCE_STEP_SHARE of a foot beyond the soles, the foot farther from where it stands under the
+# hips steps there (as the start pose stood; a step of BALANCE_STEP_S, STEP_CLEARANCE_M high: at
+# STEP_S a Rigify knee took it at 107 m/s^2); what is left the body above the feet takes,
 # moving horizontally (the knees half as far) from one standing frame's need to the next,
 # smoothed over BALANCE_SMOOTHING_S, in BALANCE_PASSES passes (the smoothing shaves what the
 # worst frames need). A foot's centre of mass share (skeleton.SEGMENT_MASSES) is at its ankle.
-BALANCE_RADIUS_SHARE = 0.3
-SOLE_MIDDLE_SHARE = 0.25
+SOLE_BACK_SHARE = 0.2
+SOLE_FRONT_SHARE = 0.7
+SOLE_SIDE_SHARE = 0.2
 BALANCE_STEP_SHARE = 0.25
 BALANCE_STEP_S = 0.5
 BALANCE_SMOOTHING_S = 0.25
 BALANCE_PASSES = 3
 BALANCE_CHECK_FRAMES = 64
+BALANCE_LINE_SAMPLES = 9
 # A planted foot left this many legs behind its hip (horizontally) steps: it lifts STEP_CLEARANCE_M
 # for STEP_S and plants again where the body has taken it, ahead of the hip by the hip's travel
 # over the next STEP_S, as a walking foot lands ahead of the body.
@@ -216,24 +220,39 @@ def _contact_flags(motion, fps, standing, pinned, predicted, lifted=None):
 
 
 def _off_balance(motion):
-    """The horizontal move (..., 2) that brings poses' (..., 17, 3) centre of mass within
-    BALANCE_RADIUS_SHARE of a foot of the line between their soles' middles (0 where it is)."""
-    forward = facing(motion)[..., :2]
+    """The horizontal move (..., 2) that brings poses' (..., 17, 3) centre of mass onto their soles
+    (0 where it is on them): every point of the line between the ankles carries a sole turned
+    with the body, from SOLE_BACK_SHARE of a foot behind to SOLE_FRONT_SHARE ahead and
+    SOLE_SIDE_SHARE to either side, the soles together the feet's support. The nearest of them is
+    found over BALANCE_LINE_SAMPLES points of the line, then as many around the nearest."""
+    forward = facing(motion)[..., None, :2]
     forward /= np.maximum(np.linalg.norm(forward, axis=-1, keepdims=True), 1e-9)
-    soles = motion[..., indices(FEET), :2] + SOLE_MIDDLE_SHARE * footsteps.FOOT_M * forward[..., None, :]
-    right, across = soles[..., 0, :], soles[..., 1, :] - soles[..., 0, :]
-    mass = centre_of_mass(motion)[..., :2]
-    along = np.clip(np.sum((mass - right) * across, axis=-1) / np.maximum(np.sum(across ** 2, axis=-1), 1e-12),
-                    0.0, 1.0)
-    gap = mass - right - along[..., None] * across
-    distance = np.linalg.norm(gap, axis=-1, keepdims=True)
-    return -gap * np.clip(1.0 - BALANCE_RADIUS_SHARE * footsteps.FOOT_M / np.maximum(distance, 1e-9), 0.0, None)
+    side = np.concatenate([forward[..., 1:], -forward[..., :1]], axis=-1)
+    ankles = motion[..., indices(FEET), :2]  # (..., 2, 2)
+    mass = centre_of_mass(motion)[..., None, :2]
+    foot = footsteps.FOOT_M
+
+    def moves(along):
+        """The moves (..., K, 2) onto the soles at the points ``along`` (..., K) of the line."""
+        relative = mass - (ankles[..., :1, :] + along[..., None] * (ankles[..., 1:, :] - ankles[..., :1, :]))
+        ahead, across = np.sum(relative * forward, axis=-1), np.sum(relative * side, axis=-1)
+        onto_ahead = np.clip(ahead, -SOLE_BACK_SHARE * foot, SOLE_FRONT_SHARE * foot) - ahead
+        onto_side = np.clip(across, -SOLE_SIDE_SHARE * foot, SOLE_SIDE_SHARE * foot) - across
+        return onto_ahead[..., None] * forward + onto_side[..., None] * side
+
+    step = 1.0 / (BALANCE_LINE_SAMPLES - 1)
+    along = np.broadcast_to(np.linspace(0.0, 1.0, BALANCE_LINE_SAMPLES), mass.shape[:-2] + (BALANCE_LINE_SAMPLES,))
+    nearest = np.take_along_axis(along, np.argmin(np.linalg.norm(moves(along), axis=-1), axis=-1)[..., None], -1)
+    along = np.clip(nearest + np.linspace(-step, step, BALANCE_LINE_SAMPLES), 0.0, 1.0)
+    candidates = moves(along)
+    best = np.argmin(np.linalg.norm(candidates, axis=-1), axis=-1)[..., None, None]
+    return np.take_along_axis(candidates, np.repeat(best, 2, axis=-1), -2)[..., 0, :]
 
 
 def _balancing_steps(motion, both, free, initial, turns, fps):
     """One variant's motion (F, 17, 3) with a foot stepping under the hips wherever, both feet
     planted (``both`` (F,)) and free of the artist's curves and keys (``free`` (F, 2)), the centre
-    of mass is BALANCE_STEP_SHARE of a foot out of balance, and the frames (F, 2) each foot is in
+    of mass is BALANCE_STEP_SHARE of a foot beyond the soles, and the frames (F, 2) each foot is in
     the air; ``turns`` (F,): the pelvis's turn since the pose ``initial`` (17, 3), whose feet
     stand under its hips."""
     out, swinging = motion.copy(), np.zeros((len(motion), 2), dtype=bool)
@@ -269,8 +288,8 @@ def _balancing_steps(motion, both, free, initial, turns, fps):
 
 def balancing_steps(motion, fps, standing, pinned, initial, predicted, steps=True):
     """(motion, lifted): motion (V, F, 17, 3) with a foot stepping under the hips where, both feet
-    planted, the centre of mass is BALANCE_STEP_SHARE of a foot out of balance (see
-    BALANCE_RADIUS_SHARE); never feet the artist pinned on the frame (``pinned`` (F, 17)), nor
+    planted, the centre of mass is BALANCE_STEP_SHARE of a foot beyond their soles (see
+    SOLE_FRONT_SHARE); never feet the artist pinned on the frame (``pinned`` (F, 17)), nor
     without ``steps`` (feet the artist keyed). ``predicted`` (V, F, 2): the model's planted feet
     in [0, 1]; ``initial`` (17, 3): the rig's balanced start; ``lifted`` (V, F, 2) bool: the
     frames each step's foot is in the air, low ones included."""
@@ -283,10 +302,10 @@ def balancing_steps(motion, fps, standing, pinned, initial, predicted, steps=Tru
 
 def over_the_feet(motion, fps, standing, contacts, pinned):
     """Motion (V, F, 17, 3) whose body above the feet moves horizontally, the knees half as far,
-    to keep its centre of mass within BALANCE_RADIUS_SHARE of a foot of the line between the
-    soles where both feet are down (planted, ``contacts`` (V, F, 2), or within CONTACT_HEIGHT_M of
-    ``standing``, as a step lands), from one such frame's need to the next; the feet stay, and so
-    do frames whose hips the artist pinned (``pinned`` (F, 17))."""
+    to keep its centre of mass over the soles (see SOLE_FRONT_SHARE) where both feet are down
+    (planted, ``contacts`` (V, F, 2), or within CONTACT_HEIGHT_M of ``standing``, as a step
+    lands), from one such frame's need to the next; the feet stay, and so do frames whose hips the
+    artist pinned (``pinned`` (F, 17))."""
     low = motion[..., indices(FEET), 2] - standing < CONTACT_HEIGHT_M
     both = (contacts | low).all(axis=-1)
     share = np.ones(motion.shape[2])  # how far each joint moves with the body
