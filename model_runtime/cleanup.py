@@ -63,7 +63,9 @@ STAND_SHARE = 0.97
 # and are left as they are). Where both feet are planted and the centre of mass is
 # BALANCE_STEP_SHARE of a foot beyond the soles, the foot farther from where it stands under the
 # hips steps there (as the start pose stood; a step of BALANCE_STEP_S, STEP_CLEARANCE_M high: at
-# STEP_S a Rigify knee took it at 107 m/s^2); what is left the body above the feet takes,
+# STEP_S a Rigify knee took it at 107 m/s^2; the foot rises for the first BALANCE_STEP_LIFT_SHARE
+# of it before it travels and sets down for the last: travelling from the start, a toe still
+# within 2 cm of the floor moved at up to 1.2 m/s); what is left the body above the feet takes,
 # moving horizontally (the knees half as far) from one standing frame's need to the next,
 # smoothed over BALANCE_SMOOTHING_S, in BALANCE_PASSES passes (the smoothing shaves what the
 # worst frames need). A foot's centre of mass share (skeleton.SEGMENT_MASSES) is at its ankle.
@@ -72,6 +74,7 @@ SOLE_FRONT_SHARE = 0.7
 SOLE_SIDE_SHARE = 0.2
 BALANCE_STEP_SHARE = 0.25
 BALANCE_STEP_S = 0.5
+BALANCE_STEP_LIFT_SHARE = 0.2
 BALANCE_SMOOTHING_S = 0.25
 BALANCE_PASSES = 3
 BALANCE_CHECK_FRAMES = 64
@@ -207,15 +210,18 @@ def heading(motion, initial):
     return angle - angle[..., :1]
 
 
-def _contact_flags(motion, fps, standing, pinned, predicted, lifted=None):
-    """Planted frames (V, F, 2) of the right and left ankles (see ``_contacts``); never those a
-    balancing step lifts (``lifted`` (V, F, 2))."""
+def _contact_flags(motion, fps, standing, pinned, predicted, placed=None):
+    """Planted frames (V, F, 2) of the right and left ankles (see ``_contacts``), as balancing
+    steps place them (``placed``, see ``balancing_steps``)."""
     flags = np.zeros(motion.shape[:2] + (2,), dtype=bool)
     for variant in range(len(motion)):
         for side, foot in enumerate(FEET):
-            free = (pinned[:, J[foot]] == 0) & (True if lifted is None else ~lifted[variant, :, side])
-            flags[variant, :, side] = _contacts(motion[variant, :, J[foot]], fps, standing, free,
+            free = pinned[:, J[foot]] == 0
+            carried = np.zeros(len(free), bool) if placed is None else placed[variant, :, side] < 0
+            flags[variant, :, side] = _contacts(motion[variant, :, J[foot]], fps, standing, free & ~carried,
                                                 predicted[variant, :, side])
+            if placed is not None:
+                flags[variant, :, side] |= free & (placed[variant, :, side] > 0)
     return flags
 
 
@@ -249,13 +255,13 @@ def _off_balance(motion):
     return np.take_along_axis(candidates, np.repeat(best, 2, axis=-1), -2)[..., 0, :]
 
 
-def _balancing_steps(motion, both, free, initial, turns, fps):
+def _balancing_steps(motion, both, free, initial, turns, fps, standing):
     """One variant's motion (F, 17, 3) with a foot stepping under the hips wherever, both feet
     planted (``both`` (F,)) and free of the artist's curves and keys (``free`` (F, 2)), the centre
-    of mass is BALANCE_STEP_SHARE of a foot beyond the soles, and the frames (F, 2) each foot is in
-    the air; ``turns`` (F,): the pelvis's turn since the pose ``initial`` (17, 3), whose feet
-    stand under its hips."""
-    out, swinging = motion.copy(), np.zeros((len(motion), 2), dtype=bool)
+    of mass is BALANCE_STEP_SHARE of a foot beyond the soles, and where the steps place the feet
+    (F, 2) (``balancing_steps``); ``turns`` (F,): the pelvis's turn since the pose ``initial``
+    (17, 3), whose feet stand under its hips; ``standing``: the floor's ankle height."""
+    out, placed = motion.copy(), np.zeros((len(motion), 2), dtype=np.int8)
     swing = max(2, int(round(BALANCE_STEP_S * fps)))
     stance = initial[indices(FEET), :2] - initial[J["Hip"], :2]  # (2, 2)
     may_step = both & free.all(axis=1)
@@ -277,27 +283,32 @@ def _balancing_steps(motion, both, free, initial, turns, fps):
         moves = under - out[frame, indices(FEET), :2]
         side = int(np.argmax(np.linalg.norm(moves, axis=-1)))
         phase = np.linspace(0.0, 1.0, swing + 1)
+        travel = smoothstep((phase - BALANCE_STEP_LIFT_SHARE) / (1.0 - 2.0 * BALANCE_STEP_LIFT_SHARE))
         for joint, share in ((J[FEET[side]], 1.0), (J[LIMBS[side][1]], 0.5)):
-            out[frame:land + 1, joint, :2] += share * smoothstep(phase)[:, None] * moves[side]
+            out[frame:land + 1, joint, :2] += share * travel[:, None] * moves[side]
             out[land + 1:, joint, :2] += share * moves[side]
             out[frame:land + 1, joint, 2] += share * STEP_CLEARANCE_M * np.sin(np.pi * phase) ** 2
-        swinging[frame + 1:land, side] = True
+        rises = np.flatnonzero(out[land:, J[FEET[side]], 2] - standing >= STEP_LIFT_M)
+        placed[land:land + (rises[0] if len(rises) else len(out)), side] = 1
+        placed[frame + 1:land, side] = -1
         frame = known = land + 1
-    return out, swinging
+    return out, placed
 
 
 def balancing_steps(motion, fps, standing, pinned, initial, predicted, steps=True):
-    """(motion, lifted): motion (V, F, 17, 3) with a foot stepping under the hips where, both feet
+    """(motion, placed): motion (V, F, 17, 3) with a foot stepping under the hips where, both feet
     planted, the centre of mass is BALANCE_STEP_SHARE of a foot beyond their soles (see
     SOLE_FRONT_SHARE); never feet the artist pinned on the frame (``pinned`` (F, 17)), nor
     without ``steps`` (feet the artist keyed). ``predicted`` (V, F, 2): the model's planted feet
-    in [0, 1]; ``initial`` (17, 3): the rig's balanced start; ``lifted`` (V, F, 2) bool: the
-    frames each step's foot is in the air, low ones included."""
+    in [0, 1]; ``initial`` (17, 3): the rig's balanced start. ``placed`` (V, F, 2) int8: -1 while
+    a step carries the foot (low frames too), 1 where it stands where a step put it, until its
+    own motion lifts it STEP_LIFT_M (a foot the model left hovering 4.3 cm up, just above
+    CONTACT_HEIGHT_M, after a step slid on the floor for a second), 0 where the motion decides."""
     free = (pinned[:, indices(FEET)] == 0) & steps
     both = _contact_flags(motion, fps, standing, pinned, predicted).all(axis=-1)  # (V, F)
-    stepped = [_balancing_steps(variant, flags, free, initial, turn, fps)
+    stepped = [_balancing_steps(variant, flags, free, initial, turn, fps, standing)
                for variant, flags, turn in zip(motion, both, heading(motion, initial))]
-    return np.stack([variant for variant, _ in stepped]), np.stack([lifted for _, lifted in stepped])
+    return np.stack([variant for variant, _ in stepped]), np.stack([placed for _, placed in stepped])
 
 
 def over_the_feet(motion, fps, standing, contacts, pinned):
@@ -326,16 +337,16 @@ def over_the_feet(motion, fps, standing, contacts, pinned):
     return motion
 
 
-def without_slide(motion, fps, standing, pinned, initial, targets, predicted, stance=None, lifted=None):
+def without_slide(motion, fps, standing, pinned, initial, targets, predicted, stance=None, placed=None):
     """The whole body moved against the slide of its planted feet: while a foot is planted, its
     horizontal drift is the body's, taken out frame by frame (where the hips are not pinned), as
     far as the hands and feet on curves ({joint: (F, 3)}) stay within reach of the body. What
     brings them back within reach is eased over REACH_EASE_S; its upward part raises the body
     above its feet (the legs straighten, up to STAND_SHARE of their length) rather than lifting
     the feet off the floor. ``predicted`` (V, F, 2): the model's planted feet in [0, 1]; ``stance``
-    (V, F, 2) bool: the feet's planned plants, which replace those found in the motion; ``lifted``
-    (V, F, 2) bool: feet a balancing step lifts, never planted."""
-    planted = _contact_flags(motion, fps, standing, pinned, predicted, lifted) if stance is None else stance
+    (V, F, 2) bool: the feet's planned plants, which replace those found in the motion; ``placed``:
+    where balancing steps place the feet (``balancing_steps``)."""
+    planted = _contact_flags(motion, fps, standing, pinned, predicted, placed) if stance is None else stance
     velocity = np.diff(motion[..., indices(FEET), :2], axis=1)  # (V, F - 1, 2, 2)
     both = planted[:, 1:] & planted[:, :-1]
     slide = (velocity * both[..., None]).sum(-2) / np.maximum(both.sum(-1), 1)[..., None]  # (V, F - 1, 2)
@@ -387,9 +398,13 @@ def _steps_when_left_behind(planted, ankles, hips, legs, fps):
     has moved more than STEP_TRIGGER legs (``legs`` (2,)) away from where the foot was planted (the
     body carried off by a curve or a ground path while the model's feet glide): the foot lifts for
     STEP_S and lands ahead of where it was generated by the hip's travel over the next STEP_S. A
-    foot never starts such a step unless the other stays on the floor all through it, the one left
-    farther behind goes first, so feet carried off together step in turn instead of hopping. Also
-    returns each frame's landing offset (F, 2, 2): nonzero where such a step lands."""
+    foot never starts such a step unless both stay planted through it otherwise (the other foot,
+    and this one where it would lift by itself), the one left farther behind goes first, so feet
+    carried off together step in turn instead of hopping; it stands for STEP_S after it lands
+    before it steps, and takes no step the shot's end would cut short (stepping again as it
+    landed, or into or out of a balancing step, a foot slid on the floor at 0.2-0.5 m/s for a
+    second). Also returns each frame's landing offset (F, 2, 2):
+    nonzero where such a step lands."""
     planted, ahead = planted.copy(), np.zeros(planted.shape + (2,))
     swing = max(2, int(round(STEP_S * fps)))
     since = [0 if planted[0, side] else None for side in range(2)]  # the frame each foot was planted on
@@ -404,14 +419,15 @@ def _steps_when_left_behind(planted, ankles, hips, legs, fps):
             hips[frame, side, :2] - ankles[since[side], side, :2] - ahead[since[side], side]) / legs[side]
             for side in range(2)]
         side = int(np.argmax(behind))
-        other_down = planted[frame:frame + swing, 1 - side].all()
-        if behind[side] > STEP_TRIGGER and frame >= stepping_until[1 - side] and other_down:
-            planted[frame:frame + swing, side] = False
-            since[side], landing = None, frame + swing
-            stepping_until[side] = landing
-            if landing < len(planted):
-                later = min(landing + swing, len(planted) - 1)
-                ahead[landing, side] = hips[later, side, :2] - hips[landing, side, :2]
+        landing = frame + swing
+        down = planted[frame:landing].all(axis=0)  # (2,): neither foot lifts by itself meanwhile
+        settled = since[side] is not None and frame - since[side] >= swing  # a foot that lands stands a while
+        if behind[side] > STEP_TRIGGER and frame >= stepping_until[1 - side] and down.all() and settled \
+                and landing < len(planted):
+            planted[frame:landing, side] = False
+            since[side], stepping_until[side] = None, landing
+            later = min(landing + swing, len(planted) - 1)
+            ahead[landing, side] = hips[later, side, :2] - hips[landing, side, :2]
     return planted, ahead
 
 
@@ -439,7 +455,7 @@ def _lift(frames, plants, height):
     return lift
 
 
-def plant_feet(motion, fps, standing, pinned, initial, predicted, stance=None, lifted=None):
+def plant_feet(motion, fps, standing, pinned, initial, predicted, stance=None, placed=None):
     """(motion, contacts (V, F, 2), foot turns (V, F, 2)), right foot first: each planted ankle
     held where it landed, on the floor, with its foot's turn about Z as it landed. The hold is an
     additive layer on the foot, eased from plant to plant through the step between, so no pop
@@ -448,11 +464,12 @@ def plant_feet(motion, fps, standing, pinned, initial, predicted, stance=None, l
     floor in a wave's last frames. ``pinned`` (F, 17): joints the artist fixed on each
     frame, which are never planted; ``initial`` (17, 3) gives the legs' lengths; ``predicted``
     (V, F, 2) the model's planted feet in [0, 1]; ``stance`` (V, F, 2) bool: planned plants, taken
-    as they are (no steps cut in); ``lifted`` (V, F, 2) bool: feet a balancing step lifts."""
+    as they are (no steps cut in); ``placed``: where balancing steps place the feet
+    (``balancing_steps``)."""
     out = motion.copy()
     pelvis = heading(motion, initial)
     turns = np.repeat(pelvis[..., None], 2, axis=-1)
-    contacts = (_contact_flags(motion, fps, standing, pinned, predicted, lifted) if stance is None
+    contacts = (_contact_flags(motion, fps, standing, pinned, predicted, placed) if stance is None
                 else stance.copy())
     frames = np.arange(motion.shape[1])
     legs = [limb_length(initial, leg) for leg in LIMBS[:2]]
@@ -464,7 +481,7 @@ def plant_feet(motion, fps, standing, pinned, initial, predicted, stance=None, l
             contacts[variant], ahead = _steps_when_left_behind(contacts[variant], motion[variant][:, feet], hips, legs,
                                                                fps)
             _bearing(contacts[variant], motion[variant][:, feet, 2] - standing,
-                     free if lifted is None else free & ~lifted[variant])
+                     free if placed is None else free & (placed[variant] >= 0))
         for side, foot in enumerate(FEET):
             ankle, turn = motion[variant, :, J[foot]], pelvis[variant]
             plants = runs(contacts[variant, :, side])
@@ -653,7 +670,7 @@ def tidy(motion, fps, initial, targets, axes, keyed, predicted, walks=None):
     motion = carried_by_hips(motion, targets, axes)
     if "Hip" in targets and not axes["Hip"][2]:  # a ground path: walk facing along it
         motion = facing_the_path(motion, initial, targets["Hip"] if walks is None else walks.routes, fps)
-    stance = lifted = None
+    stance = placed = None
     if walks is not None:
         motion = motion.copy()
         motion[:, :, indices(FEET)] = walks.ankles
@@ -661,10 +678,10 @@ def tidy(motion, fps, initial, targets, axes, keyed, predicted, walks=None):
     motion = upright(motion, initial, fps)
     motion = hips_up(on_floor(ease_out_of_start(motion, fps), fps, standing), initial, fps, standing)
     if walks is None:  # a walk's body falls forward from step to step
-        motion, lifted = balancing_steps(motion, fps, standing, on_curves, initial, predicted,
+        motion, placed = balancing_steps(motion, fps, standing, on_curves, initial, predicted,
                                          steps=not set(FEET) & set().union(*keyed.values()))
-    motion = without_slide(motion, fps, standing, on_curves, initial, targets, predicted, stance, lifted)
-    motion, contacts, turns = plant_feet(motion, fps, standing, on_curves, initial, predicted, stance, lifted)
+    motion = without_slide(motion, fps, standing, on_curves, initial, targets, predicted, stance, placed)
+    motion, contacts, turns = plant_feet(motion, fps, standing, on_curves, initial, predicted, stance, placed)
     if walks is None:
         motion = over_the_feet(motion, fps, standing, contacts, on_curves)
     else:

@@ -186,11 +186,11 @@ def test_captured_motion_is_left_as_it_stands(mocap_root, clip):
     motion = clips.load_clip(path).positions.astype(np.float64)[None]
     initial, frames = motion[0, 0], motion.shape[1]
     standing, pinned, unsure = skeleton.lower_ankle_height(initial), np.zeros((frames, 17)), np.zeros((1, frames, 2))
-    stepped, lifted = cleanup.balancing_steps(motion, FPS, standing, pinned, initial, unsure)
-    _, contacts, _ = cleanup.plant_feet(stepped, FPS, standing, pinned, initial, unsure, lifted=lifted)
+    stepped, placed = cleanup.balancing_steps(motion, FPS, standing, pinned, initial, unsure)
+    _, contacts, _ = cleanup.plant_feet(stepped, FPS, standing, pinned, initial, unsure, placed=placed)
     moved = np.linalg.norm(cleanup.over_the_feet(stepped, FPS, standing, contacts, pinned) - motion, axis=-1).max()
     print(f"{clip}: moved up to {100 * moved:.2f} cm")
-    assert not lifted.any() and moved < 0.01
+    assert not placed.any() and moved < 0.01
 
 
 def test_on_floor_removes_drift_and_keeps_a_jump():
