@@ -63,9 +63,7 @@ STAND_SHARE = 0.97
 # and are left as they are). Where both feet are planted and the centre of mass is
 # BALANCE_STEP_SHARE of a foot beyond the soles, the foot farther from where it stands under the
 # hips steps there (as the start pose stood; a step of BALANCE_STEP_S, STEP_CLEARANCE_M high: at
-# STEP_S a Rigify knee took it at 107 m/s^2; the foot rises for the first BALANCE_STEP_LIFT_SHARE
-# of it before it travels and sets down for the last: travelling from the start, a toe still
-# within 2 cm of the floor moved at up to 1.2 m/s); what is left the body above the feet takes,
+# STEP_S a Rigify knee took it at 107 m/s^2); what is left the body above the feet takes,
 # moving horizontally (the knees half as far) from one standing frame's need to the next,
 # smoothed over BALANCE_SMOOTHING_S, in BALANCE_PASSES passes (the smoothing shaves what the
 # worst frames need). A foot's centre of mass share (skeleton.SEGMENT_MASSES) is at its ankle.
@@ -74,7 +72,6 @@ SOLE_FRONT_SHARE = 0.7
 SOLE_SIDE_SHARE = 0.2
 BALANCE_STEP_SHARE = 0.25
 BALANCE_STEP_S = 0.5
-BALANCE_STEP_LIFT_SHARE = 0.2
 BALANCE_SMOOTHING_S = 0.25
 BALANCE_PASSES = 3
 BALANCE_CHECK_FRAMES = 64
@@ -85,6 +82,10 @@ BALANCE_LINE_SAMPLES = 9
 STEP_TRIGGER = 0.4
 STEP_S = 0.3
 STEP_CLEARANCE_M = 0.08
+# A step the cleanup lifts rises through its first STEP_LIFT_SHARE before the foot travels and sets
+# down through its last: travelling from the start, a toe still within 1 cm of the floor moved at up
+# to 2.5 m/s (a foot the body carried off at 1 m/s), and 1.2 in a balancing step.
+STEP_LIFT_SHARE = 0.15
 # On a ground path the body is turned to face along it, the turn smoothed over this many seconds so
 # the pelvis keeps its sway within a stride, and eased in over FACING_EASE_S from the rig's own
 # facing; frames where the path moves slower than FACING_MIN_SPEED_M_S face as it did last (or first).
@@ -283,7 +284,7 @@ def _balancing_steps(motion, both, free, initial, turns, fps, standing):
         moves = under - out[frame, indices(FEET), :2]
         side = int(np.argmax(np.linalg.norm(moves, axis=-1)))
         phase = np.linspace(0.0, 1.0, swing + 1)
-        travel = smoothstep((phase - BALANCE_STEP_LIFT_SHARE) / (1.0 - 2.0 * BALANCE_STEP_LIFT_SHARE))
+        travel = smoothstep(_travel(phase))
         for joint, share in ((J[FEET[side]], 1.0), (J[LIMBS[side][1]], 0.5)):
             out[frame:land + 1, joint, :2] += share * travel[:, None] * moves[side]
             out[land + 1:, joint, :2] += share * moves[side]
@@ -372,21 +373,28 @@ def without_slide(motion, fps, standing, pinned, initial, targets, predicted, st
     return out
 
 
-def _layer(frames, plants, inside):
-    """An additive correction (F, ...) that is ``inside(start, end)`` (its values over the plant)
-    within each plant (start, end), a run of planted frames, and eases (smoothstep) from one
-    plant's last value to the next one's first in between; 0 at the first frame, the last plant's
+def _layer(frames, plants, inside, base, lifted=()):
+    """An additive correction (F, ...) to ``base`` (F, ...), the foot's own course, that is
+    ``inside(start, end)`` (its values over the plant) within each plant (start, end), a run of
+    planted frames, and eases (smoothstep) from one plant's last value to the next one's first in
+    between; where the cleanup lifts the foot (the plants' indices ``lifted``, ``_lifted_steps``)
+    the foot itself eases from where it stood to where it lands, only while off the floor
+    (``_travel``), whatever its own course does meanwhile. 0 at the first frame, the last plant's
     last value held after it."""
     values = inside(0, 0)[:1] * 0.0
     layer = np.repeat(values, len(frames), axis=0)
     before_frame, before_value = 0, values[0]
-    for start, end in plants:
+    for index, (start, end) in enumerate(plants):
         inner = inside(start, end)
         if start > before_frame:
             span = slice(before_frame, start + 1)
-            ease = smoothstep((frames[span] - before_frame) / (start - before_frame))
-            ease = ease.reshape(-1, *([1] * (inner.ndim - 1)))
-            layer[span] = before_value + (inner[0] - before_value) * ease
+            phase = (frames[span] - before_frame) / (start - before_frame)
+            shape = (-1, *([1] * (inner.ndim - 1)))
+            if index in lifted:
+                stood, lands = before_value + base[before_frame], inner[0] + base[start]
+                layer[span] = stood + (lands - stood) * smoothstep(_travel(phase)).reshape(shape) - base[span]
+            else:
+                layer[span] = before_value + (inner[0] - before_value) * smoothstep(phase).reshape(shape)
         layer[start:end + 1] = inner
         before_frame, before_value = end, inner[-1]
     layer[before_frame:] = before_value
@@ -442,16 +450,29 @@ def _bearing(planted, heights, free):
     planted[rows, lower[rows]] = True
 
 
-def _lift(frames, plants, height):
-    """A foot's added height (F,): an arc STEP_CLEARANCE_M high over each step between plants where
-    the foot (its own ``height`` (F,) over where it stands) does not lift by STEP_LIFT_M. The arc
-    (sin^2) leaves and meets the floor at rest: a half sine lifted the foot off at full speed, and
-    a Rigify knee over a wave's late step took it at 53 m/s^2 and landed at 77."""
+def _travel(phase):
+    """A step's horizontal progress (...) in [0, 1] at its ``phase`` (...): none while the foot rises
+    through the first STEP_LIFT_SHARE of the step or sets down through the last."""
+    return np.clip((phase - STEP_LIFT_SHARE) / (1.0 - 2.0 * STEP_LIFT_SHARE), 0.0, 1.0)
+
+
+def _lifted_steps(plants, height):
+    """Indices of the plants [(start, end)] whose step in from the plant before the cleanup lifts:
+    the foot (its own ``height`` (F,) over where it stands) does not lift by STEP_LIFT_M."""
+    return {index for index, ((_, before), (after, _)) in enumerate(zip(plants, plants[1:]), start=1)
+            if after - before > 1 and height[before:after + 1].max() < STEP_LIFT_M}
+
+
+def _lift(frames, plants, lifted):
+    """A foot's added height (F,): an arc STEP_CLEARANCE_M high over each step into the plants
+    ``lifted`` (``_lifted_steps``). The arc (sin^2) leaves and meets the floor at rest: a half sine
+    lifted the foot off at full speed, and a Rigify knee over a wave's late step took it at
+    53 m/s^2 and landed at 77."""
     lift = np.zeros(len(frames))
-    for (_, before), (after, _) in zip(plants, plants[1:]):
-        if after - before > 1 and height[before:after + 1].max() < STEP_LIFT_M:
-            phase = (frames[before:after + 1] - before) / (after - before)
-            lift[before:after + 1] = STEP_CLEARANCE_M * np.sin(np.pi * phase) ** 2
+    for index in lifted:
+        before, after = plants[index - 1][1], plants[index][0]
+        phase = (frames[before:after + 1] - before) / (after - before)
+        lift[before:after + 1] = STEP_CLEARANCE_M * np.sin(np.pi * phase) ** 2
     return lift
 
 
@@ -487,11 +508,13 @@ def plant_feet(motion, fps, standing, pinned, initial, predicted, stance=None, p
             plants = runs(contacts[variant, :, side])
             held = lambda start, end: (np.array([*(ankle[start, :2] + ahead[start, side]), standing])
                                        - ankle[start:end + 1])
-            out[variant, :, J[foot]] += _layer(frames, plants, held)
-            out[variant, :, J[foot], 2] += _lift(frames, plants, ankle[:, 2] - standing)
+            lifted = _lifted_steps(plants, ankle[:, 2] - standing)
+            out[variant, :, J[foot]] += _layer(frames, plants, held, ankle, lifted)
+            out[variant, :, J[foot], 2] += _lift(frames, plants, lifted)
             height = out[variant, :, J[foot], 2]
             out[variant, :, J[foot], 2] = np.where(free[:, side], np.maximum(height, standing), height)
-            turns[variant, :, side] += _layer(frames, plants, lambda start, end: turn[start] - turn[start:end + 1])
+            turns[variant, :, side] += _layer(frames, plants, lambda start, end: turn[start] - turn[start:end + 1],
+                                              turn, lifted)
     return out, contacts, turns
 
 
