@@ -83,8 +83,9 @@ STEP_TRIGGER = 0.4
 STEP_S = 0.3
 STEP_CLEARANCE_M = 0.08
 # A step the cleanup lifts rises through its first STEP_LIFT_SHARE before the foot travels and sets
-# down through its last: travelling from the start, a toe still within 1 cm of the floor moved at up
-# to 2.5 m/s (a foot the body carried off at 1 m/s), and 1.2 in a balancing step.
+# down through its last: travelling from the start, a foot the body carried off at 1 m/s moved at
+# up to 1.8 m/s from one frame to the next within 1 cm of the floor (0.2 of the step left it
+# 0.70 m behind its hip, against 0.63).
 STEP_LIFT_SHARE = 0.15
 # On a ground path the body is turned to face along it, the turn smoothed over this many seconds so
 # the pelvis keeps its sway within a stride, and eased in over FACING_EASE_S from the rig's own
@@ -411,8 +412,7 @@ def _steps_when_left_behind(planted, ankles, hips, legs, fps):
     carried off together step in turn instead of hopping; it stands for STEP_S after it lands
     before it steps, and takes no step the shot's end would cut short (stepping again as it
     landed, or into or out of a balancing step, a foot slid on the floor at 0.2-0.5 m/s for a
-    second). Also returns each frame's landing offset (F, 2, 2):
-    nonzero where such a step lands."""
+    second). Also returns each frame's landing offset (F, 2, 2): nonzero where such a step lands."""
     planted, ahead = planted.copy(), np.zeros(planted.shape + (2,))
     swing = max(2, int(round(STEP_S * fps)))
     since = [0 if planted[0, side] else None for side in range(2)]  # the frame each foot was planted on
