@@ -412,7 +412,10 @@ def _steps_when_left_behind(planted, ankles, hips, legs, fps):
     carried off together step in turn instead of hopping; it stands for STEP_S after it lands
     before it steps, and takes no step the shot's end would cut short (stepping again as it
     landed, or into or out of a balancing step, a foot slid on the floor at 0.2-0.5 m/s for a
-    second). Also returns each frame's landing offset (F, 2, 2): nonzero where such a step lands."""
+    second). The foot lands no farther from the hip than STAND_SHARE of the leg reaches (the
+    model's own foot, far behind, set it down 1.25 legs from a wave's hip, where the rig's knee
+    snapped straight at 79 m/s^2). Also returns each frame's landing offset (F, 2, 2): nonzero
+    where such a step lands."""
     planted, ahead = planted.copy(), np.zeros(planted.shape + (2,))
     swing = max(2, int(round(STEP_S * fps)))
     since = [0 if planted[0, side] else None for side in range(2)]  # the frame each foot was planted on
@@ -435,7 +438,12 @@ def _steps_when_left_behind(planted, ankles, hips, legs, fps):
             planted[frame:landing, side] = False
             since[side], stepping_until[side] = None, landing
             later = min(landing + swing, len(planted) - 1)
-            ahead[landing, side] = hips[later, side, :2] - hips[landing, side, :2]
+            spot = ankles[landing, side, :2] + hips[later, side, :2] - hips[landing, side, :2]
+            from_hip = spot - hips[later, side, :2]
+            drop = hips[later, side, 2] - ankles[landing, side, 2]
+            room = np.sqrt(max((STAND_SHARE * legs[side]) ** 2 - drop ** 2, 0.0))  # how far the leg reaches
+            spot = hips[later, side, :2] + from_hip * min(1.0, room / max(np.linalg.norm(from_hip), 1e-9))
+            ahead[landing, side] = spot - ankles[landing, side, :2]
     return planted, ahead
 
 
