@@ -435,6 +435,29 @@ def test_feet_left_behind_step_after_the_body_through_a_long_shot():
     assert speed[low[1:] & low[:-1]].max() < 0.01
 
 
+def test_a_foot_the_model_leaves_far_behind_lands_within_its_legs_reach():
+    """Carried off at 1 m/s while the model's left foot falls 0.7 m behind: each step the cleanup
+    cuts in sets the foot down where a leg at STAND_SHARE of its length reaches from the hip as the
+    step's weight comes onto it (STEP_S after landing; straight under it here, the rest pose
+    standing on straight legs). Landed where the model's foot was, it was up to 1.25 legs from a
+    wave's hip, out of the rig's reach, and the knee snapped straight."""
+    frames, initial = 150, mannequin_module.REST_JOINTS.astype(np.float64)
+    forward = skeleton.facing(initial)
+    motion = _still(frames) + (np.arange(frames) / FPS)[None, :, None, None] * forward
+    lag = 0.7 * np.clip(np.arange(frames) / FPS, 0.0, 1.0)[:, None] * forward
+    motion[0, :, JOINT_INDEX["LFoot"]] -= lag
+    motion[0, :, JOINT_INDEX["LKnee"]] -= 0.5 * lag
+    standing, leg = initial[JOINT_INDEX["RFoot"], 2], skeleton.limb_length(initial, skeleton.LIMBS[1])
+    out, contacts, _ = cleanup.plant_feet(motion, FPS, standing, np.zeros((frames, 17)), initial,
+                                          np.zeros((1, frames, 2)))
+    lands = np.flatnonzero(contacts[0, 1:, 1] & ~contacts[0, :-1, 1]) + 1
+    hips = out[0, np.minimum(lands + int(round(cleanup.STEP_S * FPS)), frames - 1), JOINT_INDEX["LHip"]]
+    room = np.sqrt(np.maximum((cleanup.STAND_SHARE * leg) ** 2 - (hips[:, 2] - standing) ** 2, 0.0))
+    away = np.linalg.norm(out[0, lands, JOINT_INDEX["LFoot"], :2] - hips[:, :2], axis=-1)
+    print(f"left foot landings {np.round(away, 3)} m from under the hip, room {np.round(room, 3)}")
+    assert len(lands) >= 3 and (away <= room + 1e-6).all()
+
+
 def test_a_torso_leaning_further_and_further_is_drawn_back_toward_the_start_pose():
     frames, initial = 300, mannequin_module.REST_JOINTS.astype(np.float64)
     motion = _still(frames)
