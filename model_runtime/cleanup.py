@@ -216,14 +216,13 @@ def _contact_flags(motion, fps, standing, pinned, predicted, placed=None):
     """Planted frames (V, F, 2) of the right and left ankles (see ``_contacts``), as balancing
     steps place them (``placed``, see ``balancing_steps``)."""
     flags = np.zeros(motion.shape[:2] + (2,), dtype=bool)
+    placed = np.zeros(flags.shape, np.int8) if placed is None else placed
     for variant in range(len(motion)):
         for side, foot in enumerate(FEET):
             free = pinned[:, J[foot]] == 0
-            carried = np.zeros(len(free), bool) if placed is None else placed[variant, :, side] < 0
-            flags[variant, :, side] = _contacts(motion[variant, :, J[foot]], fps, standing, free & ~carried,
-                                                predicted[variant, :, side])
-            if placed is not None:
-                flags[variant, :, side] |= free & (placed[variant, :, side] > 0)
+            flags[variant, :, side] = _contacts(motion[variant, :, J[foot]], fps, standing,
+                                                free & (placed[variant, :, side] >= 0), predicted[variant, :, side])
+            flags[variant, :, side] |= free & (placed[variant, :, side] > 0)
     return flags
 
 
@@ -419,7 +418,6 @@ def _steps_when_left_behind(planted, ankles, hips, legs, fps):
     planted, ahead = planted.copy(), np.zeros(planted.shape + (2,))
     swing = max(2, int(round(STEP_S * fps)))
     since = [0 if planted[0, side] else None for side in range(2)]  # the frame each foot was planted on
-    stepping_until = [0, 0]  # the frame each foot's last step cut in here ends
     for frame in range(len(planted)):
         for side in range(2):
             if not planted[frame, side]:
@@ -431,12 +429,11 @@ def _steps_when_left_behind(planted, ankles, hips, legs, fps):
             for side in range(2)]
         side = int(np.argmax(behind))
         landing = frame + swing
-        down = planted[frame:landing].all(axis=0)  # (2,): neither foot lifts by itself meanwhile
+        down = planted[frame:landing].all(axis=0)  # (2,): neither foot lifts meanwhile, nor is in a step
         settled = since[side] is not None and frame - since[side] >= swing  # a foot that lands stands a while
-        if behind[side] > STEP_TRIGGER and frame >= stepping_until[1 - side] and down.all() and settled \
-                and landing < len(planted):
+        if behind[side] > STEP_TRIGGER and down.all() and settled and landing < len(planted):
             planted[frame:landing, side] = False
-            since[side], stepping_until[side] = None, landing
+            since[side] = None
             later = min(landing + swing, len(planted) - 1)
             spot = ankles[landing, side, :2] + hips[later, side, :2] - hips[landing, side, :2]
             from_hip = spot - hips[later, side, :2]

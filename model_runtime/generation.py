@@ -58,7 +58,8 @@ GIVEN_SPREAD = 1.25
 # variants are picked from as played, not walks along their own paths) draws CONTINUATION_DRAWS
 # continuations of each motion, CONTINUATION_SPREAD x the prior's spread, and keeps the one farthest
 # from the other motions' that keeps the hands within reach (``selection.continuations_apart``).
-# One draw at the prior's spread: a 10 s wave's 5 variants lay 0.098 / 0.110 m apart (mannequin / Rigify, seeds 0-5)
+# Measured before cleanup.balancing_steps: one draw at the prior's spread, a 10 s wave's 5 variants
+# lay 0.098 / 0.110 m apart (mannequin / Rigify, seeds 0-5)
 # and its hand's worst frame was 1.0 / 0.8 cm off the curve; 4 draws: 0.109 / 0.130 m and 0.8 / 0.6
 # cm (one draw 1.5x wider: 0.108 / 0.119 m, 1.1 / 1.2 cm; 8 draws: 0.118 / 0.127 m, 1.2 / 0.9 cm;
 # 2x wider: 0.123 / 0.134 m, 0.9 / 1.4 cm). Only while the extra draws come to no more than
