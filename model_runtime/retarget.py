@@ -23,6 +23,7 @@ A bone's parent space is assumed to move with its nearest mapped ancestor
 """
 
 from dataclasses import dataclass
+import math
 
 import numpy as np
 
@@ -500,20 +501,25 @@ def _turning_at_most(poles, along, most, free):
     from the previous frame's by at most ``most`` radians a frame, except on ``free`` (F,) frames
     (a key's bend is met as keyed). Where the hand passes close to the shoulder the way the elbow
     points is steep in the limb's direction, and the generated elbow flips from side to side."""
-    out = poles.copy()
-    for index in range(1, len(poles)):
+    out = poles.tolist()  # plain floats: a numpy call per 3-vector cost more than the arithmetic
+    limb = along.tolist()
+    for index in range(1, len(out)):
         if free[index]:
             continue
-        previous = out[index - 1] - np.dot(out[index - 1], along[index]) * along[index]
-        length = np.linalg.norm(previous)
+        (ax, ay, az), (px, py, pz), (cx, cy, cz) = limb[index], out[index - 1], out[index]
+        along_share = px * ax + py * ay + pz * az
+        px, py, pz = px - along_share * ax, py - along_share * ay, pz - along_share * az
+        length = math.sqrt(px * px + py * py + pz * pz)
         if length < 1e-6:
             continue
-        previous = previous / length
-        angle = np.arctan2(np.dot(np.cross(previous, out[index]), along[index]), np.dot(previous, out[index]))
+        px, py, pz = px / length, py / length, pz / length
+        sine = (py * cz - pz * cy) * ax + (pz * cx - px * cz) * ay + (px * cy - py * cx) * az
+        angle = math.atan2(sine, px * cx + py * cy + pz * cz)
         if abs(angle) > most:
-            angle = np.sign(angle) * most
-            out[index] = np.cos(angle) * previous + np.sin(angle) * np.cross(along[index], previous)
-    return out
+            cos, sin = math.cos(most), math.copysign(math.sin(most), angle)
+            out[index] = [cos * px + sin * (ay * pz - az * py), cos * py + sin * (az * px - ax * pz),
+                          cos * pz + sin * (ax * py - ay * px)]
+    return np.array(out, dtype=poles.dtype)
 
 
 def _elbow_reference(rig, upper, lower, end, straight):
