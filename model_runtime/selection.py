@@ -42,6 +42,15 @@ GIVEN_POOL_FACTOR = 2  # prior draws per variant where joints are given (``most_
 ANGLE_WEIGHT = 2.0  # cost of one joint angle outside its limits on every frame (a pool-median stretch costs 1)
 PLAYED_POOL = 15  # candidates a shot carries to the end, at the least, to pick its variants from as played
 PLAYED_POOL_FACTOR = 1.5  # ... and per variant asked for
+# ... and, for a few variants, PLAYED_POOL_PER_VARIANT per variant as long as candidates and variants together
+# come to no more than PLAYED_WORK: each candidate costs about as much as writing and measuring a variant
+# on the rig (36 and 27 ms of a 120-frame shot on Rigify), so 10 variants keep 20 candidates and end about
+# a second after the click, and the panel's 5 keep 25. One hand curve, seeds 0-5, mannequin / Rigify:
+# 25 candidates put a 10 s wave's variants 0.159 / 0.162 m apart (0.139 / 0.161 from 15; of 25, 5-9
+# keep the raised hand within reach), its hand's worst frame 0.1 / 0.2 cm off (0.4 / 0.9), and a
+# reach's 0.151 / 0.203 (0.151 / 0.185).
+PLAYED_POOL_PER_VARIANT = 5
+PLAYED_WORK = 30
 # ... but no more candidate-frames beyond the variants' own than this: 50 variants of 10,000 frames
 # carrying 25 more took 108 s instead of 37 and peaked at 1.89 GB instead of 1.3 (target 2)
 PLAYED_EXTRA_FRAMES = 6000
@@ -90,7 +99,8 @@ def implausibility(candidates, initial, given=None, known=None, limits=None):
 def played_pool(count, frames):
     """How many candidates a shot of ``count`` variants over ``frames`` frames carries to the end
     (``distinct_as_played``); ``count`` where a long shot has no room for more."""
-    wanted = max(PLAYED_POOL, int(np.ceil(PLAYED_POOL_FACTOR * count)))
+    wanted = max(PLAYED_POOL, int(np.ceil(PLAYED_POOL_FACTOR * count)),
+                 min(PLAYED_POOL_PER_VARIANT * count, PLAYED_WORK - count))
     return count + max(0, min(wanted - count, PLAYED_EXTRA_FRAMES // max(frames, 1)))
 
 
