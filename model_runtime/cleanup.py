@@ -155,13 +155,15 @@ def ease_out_of_start(motion, fps):
     return out
 
 
-def ease_onto_keys(motion, keyed, fps):
+def ease_onto_keys(motion, keyed, fps, standing=None):
     """Motion brought onto the keys ({frame index: {joint: (3,)}}) as an additive layer would. The
     model jumps onto a key in the last frame or two before it, so each keyed joint's motion is
     first bridged over KEY_BRIDGE_S either side of its keys; then its offset from each key, zero
     at the first frame (the rig's own pose), is eased (smoothstep) from key to key and held after
     the last, so nothing snaps on a key. Joints no key places are bridged with the joint that carries
-    them (``BRIDGED_WITH_KEYED``)."""
+    them (``BRIDGED_WITH_KEYED``). A keyed ankle is kept above ``standing`` (its height at the
+    start; ``pin`` then meets its keys exactly): a key 3 cm below where the model lifted the foot
+    carried the foot standing on the floor before and after it 3 cm into it."""
     out = motion.copy()
     frames = np.arange(motion.shape[1])
     half = max(1, int(round(KEY_BRIDGE_S * fps)))
@@ -184,6 +186,8 @@ def ease_onto_keys(motion, keyed, fps):
             ease = smoothstep((frames[span] - start) / max(end - start, 1))[None, :, None]
             layer[:, span] = before[:, None] + (after - before)[:, None] * ease
         out[:, :, J[joint]] += layer
+        if joint in FEET and standing is not None:
+            out[:, :, J[joint], 2] = np.maximum(out[:, :, J[joint], 2], standing)
     return out
 
 
@@ -717,4 +721,4 @@ def tidy(motion, fps, initial, targets, axes, keyed, predicted, walks=None):
         motion = leaning_into_the_walk(motion, np.array([gait.lean for gait in walks.gaits]), fps, initial)
         motion = swinging_arms(motion, np.array([gait.arm_swing for gait in walks.gaits]), fps, initial,
                                [not fixed & set(arm) for arm in LIMBS[2:]])
-    return pin(ease_onto_keys(motion, keyed, fps), targets, axes, keyed), contacts, turns
+    return pin(ease_onto_keys(motion, keyed, fps, standing), targets, axes, keyed), contacts, turns
