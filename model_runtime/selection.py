@@ -45,10 +45,10 @@ PLAYED_POOL_FACTOR = 1.5  # ... and per variant asked for
 # ... and, for a few variants, PLAYED_POOL_PER_VARIANT per variant as long as candidates and variants together
 # come to no more than PLAYED_WORK: each candidate costs about as much as writing and measuring a variant
 # on the rig (36 and 27 ms of a 120-frame shot on Rigify), so 10 variants keep 20 candidates and end about
-# a second after the click, and the panel's 5 keep 25. One hand curve, seeds 0-5, mannequin / Rigify:
-# 25 candidates put a 10 s wave's variants 0.159 / 0.162 m apart (0.139 / 0.161 from 15; of 25, 5-9
-# keep the raised hand within reach), its hand's worst frame 0.1 / 0.2 cm off (0.4 / 0.9), and a
-# reach's 0.151 / 0.203 (0.151 / 0.185).
+# a second after the click, and the panel's 5 keep 25. One hand curve, seeds 0-5, mannequin / Rigify,
+# before the rig's clavicles turned (retarget.CLAVICLES): 25 candidates put a 10 s wave's variants
+# 0.159 / 0.162 m apart (0.139 / 0.161 from 15), its hand's worst frame 0.1 / 0.2 cm off (0.4 / 0.9),
+# and a reach's 0.151 / 0.203 (0.151 / 0.185).
 PLAYED_POOL_PER_VARIANT = 5
 PLAYED_WORK = 30
 # ... but no more candidate-frames beyond the variants' own than this: 50 variants of 10,000 frames

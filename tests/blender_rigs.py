@@ -56,7 +56,7 @@ def played(rig, frames):
     joints, toes = [], []
     for frame in frames:
         scene.frame_set(int(frame))
-        joints.append(rig_state.read(rig, bones, bpy.context.evaluated_depsgraph_get(), shown)[1])
+        joints.append(rig_state.world_joints(rig, bones, bpy.context.evaluated_depsgraph_get(), shown))
         world = np.array(rig.matrix_world)
         toes.append([world[:3, :3] @ np.array(rig.pose.bones[foot].tail) + world[:3, 3] for foot in feet])
     return np.array(joints), np.array(toes)

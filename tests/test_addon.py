@@ -6,7 +6,7 @@ import pytest
 
 import blender_rigs
 import trajevae_addon
-from trajevae_addon import api, pipeline, rig_state
+from trajevae_addon import api, pipeline, rig_mapping, rig_state
 
 HAND_AND_FOOT = {"LWrist": (0.0, -0.35, 0.25), "RWrist": (0.15, -0.3, 0.1), "LFoot": (0.0, -0.3, 0.0),
                  "RFoot": (0.0, -0.6, 0.0)}
@@ -115,6 +115,9 @@ def test_generated_rigify_rig_is_keyed_on_its_fk_controls(scene, rigify):
     rig.pose.bones["foot_ik.L"].location = (0.0, 0.1, 0.25)  # the artist poses the left leg in IK
     bpy.context.view_layer.update()
     shown_foot = np.array(rig.pose.bones["ORG-foot.L"].head)
+    bones, depsgraph, shown = api.map_rig(rig), bpy.context.evaluated_depsgraph_get(), rig_mapping.shown_by("rigify")
+    np.testing.assert_allclose(rig_state.world_joints(rig, bones, depsgraph, shown),
+                               rig_state.read(rig, bones, depsgraph, shown)[1], atol=1e-6)  # measured as read
     _bind(scene, rig, ("LWrist", "RWrist"))
     made = api.generate_variants(rig, n=2, seed=1)
     scene.frame_set(scene.frame_start)
@@ -124,6 +127,11 @@ def test_generated_rigify_rig_is_keyed_on_its_fk_controls(scene, rigify):
     bones = {path.split('"')[1] for path in keyed}
     assert not any(bone.startswith(("DEF-", "MCH-", "ORG-")) for bone in bones)
     assert 'pose.bones["thigh_parent.L"]["IK_FK"]' in keyed
+    # the shoulder controls turn the clavicles, and the FK arms hang from them (through ORG-shoulder)
+    assert {"shoulder.L", "shoulder.R"} <= bones
+    state, _ = rig_state.read(rig, api.map_rig(rig), bpy.context.evaluated_depsgraph_get())
+    assert state.clavicles == {"LClavicle": "shoulder.L", "RClavicle": "shoulder.R"}
+    assert state.drivers["upper_arm_fk.L"] == "shoulder.L" and state.drivers["shoulder.L"] == "torso"
     # measured on the visible skeleton (ORG bones follow FK once the switches are keyed)
     read = {"LWrist": "ORG-hand.L", "RWrist": "ORG-hand.R"}
     errors = _curve_errors(scene, rig, read)
@@ -140,6 +148,7 @@ def test_mixamo_centimetre_rig_turned_and_moved_with_mixed_rotation_modes(scene)
     _check_variants(rig, made, 2)
     paths = {path for path, _ in _keys(made[0])}
     assert 'pose.bones["mixamorig:LeftArm"].rotation_axis_angle' in paths
+    assert any(path.startswith('pose.bones["mixamorig:LeftShoulder"].rotation') for path in paths)  # its clavicle
     assert 'pose.bones["mixamorig:RightUpLeg"].rotation_euler' in paths
     errors = _curve_errors(scene, rig, {})
     print(f"mixamo (cm, turned), 2 curves: mean curve error (m) {errors}")

@@ -24,14 +24,31 @@ def _plain_rig(pose):
                              drivers={b: PARENTS.get(b) for b in rest}, joints=pose.copy()), rest
 
 
-def _forward(rest, bases):
-    """Pose matrices (F, 4, 4) per bone of the plain rig."""
+def _rig_with_clavicles(pose):
+    """The plain rig with a clavicle from beside the neck base to each upper arm: (rig, rest
+    matrices, parents)."""
+    parents = dict(PARENTS, RClavicle="Spine", LClavicle="Spine", RShoulder="RClavicle", LShoulder="LClavicle")
+    plain, rest = _plain_rig(pose)
+    for side in "RL":
+        rest[side + "Clavicle"] = np.eye(4)
+        rest[side + "Clavicle"][:3, 3] = pose[JOINT_INDEX["Thorax"]] + 0.1 * (
+            pose[JOINT_INDEX[side + "Shoulder"]] - pose[JOINT_INDEX["Thorax"]])
+    rig = retarget.RigState(bones=plain.bones, matrices=rest, bases={b: np.eye(4) for b in rest},
+                            drivers={b: parents.get(b) for b in rest}, joints=pose.copy(),
+                            clavicles={f"{side}Clavicle": f"{side}Clavicle" for side in "RL"})
+    return rig, rest, parents
+
+
+def _forward(rest, bases, parents=PARENTS):
+    """Pose matrices (F, 4, 4) per bone of the plain rig (or one with other ``parents``)."""
     pose = {}
-    for bone in ("Hip",) + tuple(PARENTS):
-        parent = PARENTS.get(bone)
-        local = rest[bone] @ bases[bone] if parent is None else (
-            pose[parent] @ np.linalg.inv(rest[parent]) @ rest[bone] @ bases[bone])
-        pose[bone] = local
+    while len(pose) < len(rest):
+        for bone in rest:
+            parent = parents.get(bone)
+            if bone in pose or (parent is not None and parent not in pose):
+                continue
+            pose[bone] = rest[bone] @ bases[bone] if parent is None else (
+                pose[parent] @ np.linalg.inv(rest[parent]) @ rest[bone] @ bases[bone])
     return pose
 
 
@@ -73,6 +90,47 @@ def test_retarget_of_the_initial_pose_changes_nothing(motion):
     bases = retarget.bone_bases(rig, retarget.joint_deltas(rig, np.repeat(motion[:1], 3, axis=0), pinned))
     for bone, basis in bases.items():
         np.testing.assert_allclose(basis, np.broadcast_to(np.eye(4), basis.shape), atol=1e-5, err_msg=bone)
+
+
+def test_a_rigs_clavicles_put_its_shoulders_where_the_generated_ones_are(motion):
+    """A shrug: the generated right arm turned 15 degrees up about its clavicle's head. A rig whose
+    clavicles stay put leaves its shoulder, and so the held hand's reach, where the chest carries it."""
+    J = JOINT_INDEX
+    rig, rest, parents = _rig_with_clavicles(motion[0])
+    plain, _ = _plain_rig(motion[0])
+    targets = motion[1:].copy()
+    head = targets[:, J["Thorax"]] + 0.1 * (targets[:, J["RShoulder"]] - targets[:, J["Thorax"]])  # (F, 3)
+    forward = np.cross(targets[:, J["LShoulder"]] - targets[:, J["RShoulder"]], [0.0, 0.0, 1.0])
+    forward /= np.linalg.norm(forward, axis=-1, keepdims=True)
+    angle = np.radians(15.0)  # about the forward axis, the right arm's side rises
+    for joint in ("RShoulder", "RElbow", "RWrist"):
+        offset = targets[:, J[joint]] - head
+        along = np.sum(offset * forward, axis=-1, keepdims=True) * forward
+        targets[:, J[joint]] = head + along + np.cos(angle) * (offset - along) + np.sin(angle) * np.cross(offset, forward)
+    pinned = np.zeros(targets.shape[:2])
+    pinned[:, J["RWrist"]] = 1.0
+    pose = _forward(rest, retarget.bone_bases(rig, retarget.joint_deltas(rig, targets, pinned)), parents)
+    unturned = retarget.achieved_joints(plain, retarget.joint_deltas(plain, targets, pinned))
+    error = np.linalg.norm(pose["RShoulder"][:, :3, 3] - targets[:, J["RShoulder"]], axis=-1)
+    fixed = np.linalg.norm(unturned[:, J["RShoulder"]] - targets[:, J["RShoulder"]], axis=-1)
+    print(f"shrugged shoulder {100 * error.mean():.2f} cm from the generated one on average "
+          f"({100 * fixed.mean():.2f} with the clavicle unturned)")
+    assert error.mean() < 0.01 and fixed.mean() > 0.03
+    assert np.linalg.norm(pose["RWrist"][:, :3, 3] - targets[:, J["RWrist"]], axis=-1).mean() < 0.005
+    first = retarget.bone_bases(rig, retarget.joint_deltas(rig, np.repeat(motion[:1], 3, axis=0),
+                                                           np.ones((3, 17)) * (np.arange(17) == J["Hip"])))
+    for bone, basis in first.items():  # the rig's own pose retargets to itself, clavicles too
+        np.testing.assert_allclose(basis, np.broadcast_to(np.eye(4), basis.shape), atol=1e-5, err_msg=bone)
+
+
+def test_a_clavicle_turns_no_further_than_captured_shoulders_do(motion):
+    rig, rest, parents = _rig_with_clavicles(motion[0])
+    targets = np.repeat(motion[:1], 5, axis=0)
+    targets[:, JOINT_INDEX["RShoulder"], 2] += np.linspace(0.0, 0.3, 5)  # up to 30 cm above where it was
+    bases = retarget.bone_bases(rig, retarget.joint_deltas(rig, targets))
+    turned = np.degrees(np.arccos(np.clip((np.trace(bases["RClavicle"][:, :3, :3], axis1=1, axis2=2) - 1) / 2, -1, 1)))
+    print(f"clavicle turned {np.round(turned, 1)} degrees")
+    assert np.all(np.diff(turned) > 0.0) and turned.max() < retarget.MAX_CLAVICLE_DEG
 
 
 def test_unreachable_targets_stretch_nothing(motion):

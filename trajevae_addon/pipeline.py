@@ -126,9 +126,12 @@ def _moves_in_world(armature, action):
 
 
 def _joints_of_keyed_bone(rig, bone):
-    """A key on a bone fixes its own joint and the joints of the bones it carries directly."""
+    """A key on a bone fixes its own joint and the joints of the bones it carries directly, or
+    through a clavicle (which the artist's keys do not move)."""
     joint_of = {b: j for j, b in rig.bones.items()}
-    return [joint_of[bone]] + [joint_of[child] for child, driver in rig.drivers.items() if driver == bone]
+    carriers = {bone} | {b for b in rig.clavicles.values() if rig.drivers[b] == bone}
+    return [joint_of[bone]] + [joint_of[child] for child, driver in rig.drivers.items()
+                               if driver in carriers and child in joint_of]
 
 
 def _with_artist_action(armature, read):
@@ -204,7 +207,7 @@ def prepare(armature, count=5, seed=0, diversity=1.0, scene=None):
                     for bone in keyed for joint in (["Hip"] if bone in roots else _joints_of_keyed_bone(rig, bone))}
             for frame, keyed in key_frames.items()}
     request = shot.Request(
-        count, seed, diversity, rig, {bone: armature.pose.bones[bone].rotation_mode for bone in rig.bones.values()},
+        count, seed, diversity, rig, {bone: armature.pose.bones[bone].rotation_mode for bone in rig.keyed.values()},
         bones["Hip"], frames, scene.render.fps / scene.render.fps_base, world, joints, float(toes[:, 2].min()),
         metres_per_unit, keys=keys, start_toes=toes)
     for joint, (obj, use_drawing_speed) in paths.items():
@@ -345,8 +348,8 @@ class Writer:
         measured = []
         for position in self._measured_frames(index):
             self.scene.frame_set(int(self.job.request.frames[position]))
-            _, world = rig_state.read(self.armature, self.job.bones, bpy.context.evaluated_depsgraph_get(),
-                                      self.job.shown_by)
+            world = rig_state.world_joints(self.armature, self.job.bones, bpy.context.evaluated_depsgraph_get(),
+                                           self.job.shown_by)
             for joint, path in self.job.result.targets.items():
                 axes, asked = self.job.result.axes[joint], shot.variant_target(path, index)[position]
                 measured.append((joint, position, float(np.linalg.norm((world[J[joint]] - asked)[axes]))))

@@ -31,6 +31,7 @@ class BlenderRigProfile:
     signature: tuple
     switches: dict = field(default_factory=dict)  # data path -> value while generated motion plays
     shown_by: dict = field(default_factory=dict)  # keyed bone -> bone showing the pose the artist sees
+    clavicles: dict = field(default_factory=dict)  # "RClavicle" / "LClavicle" -> bone (else from the hierarchy)
 
 
 def _sided(table):
@@ -61,7 +62,8 @@ _RIGIFY = BlenderRigProfile(
               'pose.bones["torso"]["neck_follow"]': 1.0, 'pose.bones["torso"]["head_follow"]': 1.0},
     # an artist posing in IK sees the ORG chain: generation starts from it, as an FK snap would
     shown_by={f"{part}_fk.{side}": f"ORG-{part}.{side}" for side in "LR"
-              for part in ("thigh", "shin", "foot", "upper_arm", "forearm", "hand")})
+              for part in ("thigh", "shin", "foot", "upper_arm", "forearm", "hand")},
+    clavicles=_sided({"{s}Clavicle": "shoulder.{s}"}))
 _METARIG = BlenderRigProfile(
     "rigify-metarig",
     _sided({"Hip": "spine", "Spine": "spine.001", "Thorax": "spine.004", "Neck": "spine.006",
@@ -156,6 +158,29 @@ def shown_by(profile_name):
     """Keyed bone -> the bone that shows the pose the artist sees (when they differ)."""
     profile = _profile(profile_name)
     return profile.shown_by if profile else {}
+
+
+def clavicles(profile_name, parents, mapping):
+    """{"RClavicle" / "LClavicle": bone} of a rig given as {bone: parent or None} and its mapping:
+    as its profile names them, or else each upper arm's parent where no joint is mapped to it and
+    the other upper arm does not hang from it (it is not the chest)."""
+    profile = _profile(profile_name)
+    if profile is not None and profile.clavicles:
+        return {key: bone for key, bone in profile.clavicles.items() if bone in parents}
+    mapped = {bone for bone in mapping.values() if bone}
+    out = {}
+    for side, other in (("R", "L"), ("L", "R")):
+        upper, other_upper = mapping.get(f"{side}Shoulder"), mapping.get(f"{other}Shoulder")
+        parent = parents.get(upper) if upper else None
+        if parent is None or parent in mapped:
+            continue
+        ancestors, bone = set(), other_upper
+        while bone is not None:
+            ancestors.add(bone)
+            bone = parents.get(bone)
+        if parent not in ancestors:
+            out[f"{side}Clavicle"] = parent
+    return out
 
 
 def missing(mapping):

@@ -143,14 +143,27 @@ def switches_from_json(text):
 
 
 def _drivers(armature, keyed):
-    """Keyed bone -> its nearest keyed ancestor (whose motion carries its parent space) or None."""
+    """Keyed bone -> its nearest keyed ancestor (whose motion carries its parent space) or None. An
+    ancestor that copies a keyed bone's transforms whole (Rigify's ORG-shoulder, under its upper
+    arms, copies the shoulder control) counts as that bone."""
     out = {}
     for bone in keyed:
         parent = armature.data.bones[bone].parent
-        while parent is not None and parent.name not in keyed:
+        while parent is not None and parent.name not in keyed and _copied(armature, parent.name, keyed) is None:
             parent = parent.parent
-        out[bone] = parent.name if parent is not None else None
+        out[bone] = None if parent is None else parent.name if parent.name in keyed else _copied(
+            armature, parent.name, keyed)
     return out
+
+
+def _copied(armature, bone, keyed):
+    """The keyed bone whose transforms ``bone`` copies whole (a Copy Transforms constraint of full
+    influence on this armature), or None."""
+    for constraint in armature.pose.bones[bone].constraints:
+        if (constraint.type == 'COPY_TRANSFORMS' and constraint.enabled and constraint.influence == 1.0
+                and constraint.target == armature and constraint.subtarget in keyed):
+            return constraint.subtarget
+    return None
 
 
 def _snap(matrices, bases, drivers, shown):
@@ -170,6 +183,17 @@ def _snap(matrices, bases, drivers, shown):
         matrices[bone], bases[bone] = new, np.linalg.inv(parent_space) @ new
 
 
+def _clavicles(armature, keyed):
+    """{"RClavicle" / "LClavicle": bone} (``retarget.CLAVICLES``) of the rig's clavicles that its
+    trunk carries (the hips' or the chest's bone) and that carry their upper arm."""
+    parents = {bone.name: bone.parent.name if bone.parent else None for bone in armature.data.bones}
+    found = rig_mapping.clavicles(detected(armature)[0], parents, keyed)
+    drivers = _drivers(armature, set(keyed.values()) | set(found.values()))
+    trunk = {keyed.get("Hip"), keyed.get("Spine")} - {None}
+    return {key: bone for key, bone in found.items() if drivers[bone] in trunk
+            and drivers.get(keyed.get(key.replace("Clavicle", "Shoulder"))) == bone}
+
+
 def read(armature, bones, depsgraph, shown_by=None):
     """The rig as the retargeter needs it (armature space) and its joints in world space (17, 3).
 
@@ -181,13 +205,23 @@ def read(armature, bones, depsgraph, shown_by=None):
     evaluated = armature.evaluated_get(depsgraph)
     pose = evaluated.pose.bones
     keyed = {joint: bone for joint, bone in bones.items() if bone and joint != "Head"}
-    names = set(keyed.values())
+    clavicles = _clavicles(armature, keyed)
+    names = set(keyed.values()) | set(clavicles.values())
     matrices = {bone: np.array(pose[bone].matrix, dtype=np.float64) for bone in names}
     bases = {bone: np.array(pose[bone].matrix_basis, dtype=np.float64) for bone in names}
     drivers = _drivers(armature, names)
     if shown_by:
         _snap(matrices, bases, drivers, {bone: np.array(pose[shown].matrix, dtype=np.float64)
                                          for bone, shown in shown_by.items() if bone in names and shown in pose})
+    joints = _joints(matrices, keyed, bones, pose)
+    state = retarget.RigState(bones=keyed, matrices=matrices, bases=bases, drivers=drivers, joints=joints,
+                              clavicles=clavicles)
+    world = np.array(armature.matrix_world, dtype=np.float64)
+    return state, joints @ world[:3, :3].T + world[:3, 3]
+
+
+def _joints(matrices, keyed, bones, pose):
+    """Joint positions (17, 3) in armature space from the keyed bones' matrices {bone: (4, 4)}."""
     joints = np.zeros((skeleton.NUM_JOINTS, 3))
     for joint in profiles.MAPPED_JOINTS:
         joints[J[joint]] = matrices[keyed[joint]][:3, 3]
@@ -201,9 +235,19 @@ def read(armature, bones, depsgraph, shown_by=None):
         head_axis = matrices[keyed["Neck"]][:3, 1]
         joints[J["Head"]] = joints[J["Neck"]] + profiles.HEAD_LENGTH_PER_LEG * legs * head_axis / np.linalg.norm(
             head_axis)
-    state = retarget.RigState(bones=keyed, matrices=matrices, bases=bases, drivers=drivers, joints=joints)
+    return joints
+
+
+def world_joints(armature, bones, depsgraph, shown_by=None):
+    """The joints in world space (17, 3) as the rig shows them now (``read``'s second part, read
+    from the bones that show each keyed one): what measuring a variant as played needs."""
+    pose = armature.evaluated_get(depsgraph).pose.bones
+    keyed = {joint: bone for joint, bone in bones.items() if bone and joint != "Head"}
+    shown = {bone: (shown_by or {}).get(bone, bone) for bone in keyed.values()}
+    matrices = {bone: np.array(pose[shown[bone] if shown[bone] in pose else bone].matrix, dtype=np.float64)
+                for bone in keyed.values()}
     world = np.array(armature.matrix_world, dtype=np.float64)
-    return state, joints @ world[:3, :3].T + world[:3, 3]
+    return _joints(matrices, keyed, bones, pose) @ world[:3, :3].T + world[:3, 3]
 
 
 def toes(armature, bones, depsgraph, shown_by=None):
