@@ -456,7 +456,10 @@ def _reach_feet(rig, targets, pelvis, free, hips_on_path=False, rounds=4):
     move = moved[:, :3, 3] - pelvis[:, :3, 3]  # (F, 3)
     size = np.maximum(smooth(window_max(np.linalg.norm(move, axis=-1), PELVIS_EASE), PELVIS_EASE / 3.0) * free,
                       np.linalg.norm(move, axis=-1))  # each frame's own move at least, eased in and out
-    way = _unit(np.swapaxes(smooth(move.T, PELVIS_EASE / 3.0), 0, 1))
+    # its direction smoothed over a wider span than the size's ease reaches (3 frames of window and 3
+    # of smoothing): narrower, the direction was nothing 4 frames after the last frame that needed a
+    # move, and a 3 cm drop ended in a frame (a wave's hips 38 m/s^2, the knee 67)
+    way = _unit(np.swapaxes(smooth(move.T, PELVIS_EASE), 0, 1))
     pelvis = pelvis.copy()
     pelvis[:, :3, 3] += way * size[:, None]
     return pelvis

@@ -133,6 +133,20 @@ def test_a_clavicle_turns_no_further_than_captured_shoulders_do(motion):
     assert np.all(np.diff(turned) > 0.0) and turned.max() < retarget.MAX_CLAVICLE_DEG
 
 
+def test_a_pelvis_lowered_for_a_foot_out_of_reach_rises_again_eased(motion):
+    """A foot 15 cm below what the legs reach for 8 frames, then within reach: the pelvis drops to
+    let it reach and comes back up over frames. Its direction, smoothed over fewer frames than its
+    size, was nothing 4 frames on and the last 7 cm went in one frame (a wave's hips, 38 m/s^2)."""
+    rig, _ = _plain_rig(motion[0])
+    targets = np.repeat(motion[:1], 24, axis=0)
+    targets[:, [JOINT_INDEX["Hip"], JOINT_INDEX["RHip"], JOINT_INDEX["LHip"]], 2] -= 0.05  # knees bent
+    targets[:8, JOINT_INDEX["RFoot"], 2] -= 0.15
+    hips = retarget._apply(retarget.joint_deltas(rig, targets)["Hip"], rig.joints[JOINT_INDEX["Hip"]])
+    drop = hips[:, 2] - hips[-1, 2]
+    print(f"pelvis drop (cm) {np.round(100 * drop, 1)}")
+    assert drop.min() < -0.08 and np.abs(np.diff(drop)).max() < 0.45 * -drop.min()
+
+
 def test_unreachable_targets_stretch_nothing(motion):
     rig, rest = _plain_rig(motion[0])
     targets = motion[1:].copy()
