@@ -57,7 +57,8 @@ MAX_POLE_DEG_PER_FRAME = 10.0
 # upper-limb lengths) at which the generated direction counts half.
 MAX_BEND_TURN = {"leg": 30.0, "arm": 90.0}
 # ... and the turn taken from the generated bend is smoothed over this many frames (Gaussian sigma):
-# where the generated elbow swings past its hinge's side the turn rises and falls within a few frames.
+# where the generated elbow swings past its hinge's side the turn rises and falls within a few frames
+# (a Rigify elbow before a key: 57 m/s^2 clipped hard, 37 eased into the limit, 9 smoothed as well).
 BEND_SMOOTHING = 2.0
 # A knee turns at most this far (degrees) inward, toward the other leg: the model's knees pointed
 # up to 22 degrees inward through whole idle shots (knock-kneed; captured motion: 0-12).
@@ -573,7 +574,7 @@ def _eased_clip(angle, below, above):
     """``angle`` (F,) kept within -below..above (F,) with no corner: as it is up to half the limit,
     then easing (tanh) toward it. Clipped hard, and counted less linearly beyond 90 degrees
     (``behind``), an elbow the model swung past its hinge's side turned back in a frame (57 m/s^2,
-    8x the median frame, a Rigify arm before a key)."""
+    8x the median frame, a Rigify arm before a key; see BEND_SMOOTHING)."""
     limit = np.where(angle < 0.0, below, above)
     excess = np.maximum(np.abs(angle) - 0.5 * limit, 0.0)
     return np.sign(angle) * (np.minimum(np.abs(angle), 0.5 * limit) + 0.5 * limit * np.tanh(excess / (0.5 * limit)))
@@ -581,17 +582,9 @@ def _eased_clip(angle, below, above):
 
 def _turning_at_most(poles, along, most, free):
     """Unit poles (F, 3), each perpendicular to its limb's ``along`` (F, 3), turned about the limb
-    from the previous and the next frame's by at most ``most`` radians a frame, except on ``free``
-    (F,) frames (a key's bend is met as keyed). Where the hand passes close to the shoulder the way
-    the elbow points is steep in the limb's direction, and the generated elbow flips from side to
-    side. Limited forward only, a pole held back met a key's frames all at once where they began:
-    a keyed Rigify elbow moved 5 cm in a frame (57 m/s^2, 8x the median frame)."""
-    forward = _turning_from_previous(poles, along, most, free)
-    return _turning_from_previous(forward[::-1], along[::-1], most, free[::-1])[::-1]
-
-
-def _turning_from_previous(poles, along, most, free):
-    """``_turning_at_most`` in one direction: each pole from the previous frame's."""
+    from the previous frame's by at most ``most`` radians a frame, except on ``free`` (F,) frames
+    (a key's bend is met as keyed). Where the hand passes close to the shoulder the way the elbow
+    points is steep in the limb's direction, and the generated elbow flips from side to side."""
     out = poles.tolist()  # plain floats: a numpy call per 3-vector cost more than the arithmetic
     limb = along.tolist()
     for index in range(1, len(out)):
