@@ -183,9 +183,11 @@ def _snap(matrices, bases, drivers, shown):
         matrices[bone], bases[bone] = new, np.linalg.inv(parent_space) @ new
 
 
-def _clavicles(armature, keyed):
-    """{"RClavicle" / "LClavicle": bone} (``retarget.CLAVICLES``) of the rig's clavicles that its
-    trunk carries (the hips' or the chest's bone) and that carry their upper arm."""
+def clavicles(armature, bones):
+    """{"RClavicle" / "LClavicle": bone} (``retarget.CLAVICLES``) of the rig's clavicles, given its
+    mapping {joint: bone or None}, that its trunk carries (the hips' or the chest's bone) and that
+    carry their upper arm: keyed with the mapped bones."""
+    keyed = {joint: bone for joint, bone in bones.items() if bone and joint != "Head"}
     parents = {bone.name: bone.parent.name if bone.parent else None for bone in armature.data.bones}
     found = rig_mapping.clavicles(detected(armature)[0], parents, keyed)
     drivers = _drivers(armature, set(keyed.values()) | set(found.values()))
@@ -205,8 +207,8 @@ def read(armature, bones, depsgraph, shown_by=None):
     evaluated = armature.evaluated_get(depsgraph)
     pose = evaluated.pose.bones
     keyed = {joint: bone for joint, bone in bones.items() if bone and joint != "Head"}
-    clavicles = _clavicles(armature, keyed)
-    names = set(keyed.values()) | set(clavicles.values())
+    found = clavicles(armature, keyed)
+    names = set(keyed.values()) | set(found.values())
     matrices = {bone: np.array(pose[bone].matrix, dtype=np.float64) for bone in names}
     bases = {bone: np.array(pose[bone].matrix_basis, dtype=np.float64) for bone in names}
     drivers = _drivers(armature, names)
@@ -215,7 +217,7 @@ def read(armature, bones, depsgraph, shown_by=None):
                                          for bone, shown in shown_by.items() if bone in names and shown in pose})
     joints = _joints(matrices, keyed, bones, pose)
     state = retarget.RigState(bones=keyed, matrices=matrices, bases=bases, drivers=drivers, joints=joints,
-                              clavicles=clavicles)
+                              clavicles=found)
     world = np.array(armature.matrix_world, dtype=np.float64)
     return state, joints @ world[:3, :3].T + world[:3, 3]
 

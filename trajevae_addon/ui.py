@@ -119,6 +119,8 @@ class TRAJEVAE_PT_mapping(_SidebarPanel, bpy.types.Panel):
             row.prop_search(armature.trajevae.mapping, joint, armature.data, "bones", text=joint)
             if not getattr(armature.trajevae.mapping, joint):
                 row.label(text=detected[joint] or "-")
+        found = rig_state.clavicles(armature, rig_state.mapping(armature))
+        layout.label(text="Clavicles, keyed too: " + (", ".join(sorted(found.values())) or "none found"))
 
 
 CLASSES = (TRAJEVAE_UL_bindings, TRAJEVAE_UL_variants, TRAJEVAE_PT_main, TRAJEVAE_PT_mapping)
