@@ -207,7 +207,7 @@ def read(armature, bones, depsgraph, shown_by=None):
     evaluated = armature.evaluated_get(depsgraph)
     pose = evaluated.pose.bones
     keyed = {joint: bone for joint, bone in bones.items() if bone and joint != "Head"}
-    found = clavicles(armature, keyed)
+    found = clavicles(armature, bones)
     names = set(keyed.values()) | set(found.values())
     matrices = {bone: np.array(pose[bone].matrix, dtype=np.float64) for bone in names}
     bases = {bone: np.array(pose[bone].matrix_basis, dtype=np.float64) for bone in names}
