@@ -292,7 +292,7 @@ def _balancing_steps(motion, both, free, initial, turns, fps, standing):
         for joint, share in ((J[FEET[side]], 1.0), (J[LIMBS[side][1]], 0.5)):
             out[frame:land + 1, joint, :2] += share * travel[:, None] * moves[side]
             out[land + 1:, joint, :2] += share * moves[side]
-            out[frame:land + 1, joint, 2] += share * STEP_CLEARANCE_M * np.sin(np.pi * phase) ** 2
+            out[frame:land + 1, joint, 2] += share * _arc(phase)
         rises = np.flatnonzero(out[land:, J[FEET[side]], 2] - standing >= STEP_LIFT_M)
         placed[land:land + (rises[0] if len(rises) else len(out)), side] = 1
         placed[frame + 1:land, side] = -1
@@ -472,16 +472,20 @@ def _lifted_steps(plants, height):
             if after - before > 1 and height[before:after + 1].max() < STEP_LIFT_M}
 
 
+def _arc(phase):
+    """A stepping foot's added height (...) at its step's ``phase`` (...) in [0, 1]: STEP_CLEARANCE_M
+    at the middle, sin^2, so it leaves and meets the floor at rest (a half sine lifted the foot off
+    at full speed, and a Rigify knee over a wave's late step took it at 53 m/s^2 and landed at 77)."""
+    return STEP_CLEARANCE_M * np.sin(np.pi * phase) ** 2
+
+
 def _lift(frames, plants, lifted):
-    """A foot's added height (F,): an arc STEP_CLEARANCE_M high over each step into the plants
-    ``lifted`` (``_lifted_steps``). The arc (sin^2) leaves and meets the floor at rest: a half sine
-    lifted the foot off at full speed, and a Rigify knee over a wave's late step took it at
-    53 m/s^2 and landed at 77."""
+    """A foot's added height (F,): an ``_arc`` over each step into the plants ``lifted``
+    (``_lifted_steps``)."""
     lift = np.zeros(len(frames))
     for index in lifted:
         before, after = plants[index - 1][1], plants[index][0]
-        phase = (frames[before:after + 1] - before) / (after - before)
-        lift[before:after + 1] = STEP_CLEARANCE_M * np.sin(np.pi * phase) ** 2
+        lift[before:after + 1] = _arc((frames[before:after + 1] - before) / (after - before))
     return lift
 
 

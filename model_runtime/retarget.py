@@ -167,13 +167,8 @@ def _rigid(rotation, pivot_before, pivot_after):
 
 
 def _apply(delta, point):
-    """Points (F, 3) of a point (3,) moved by deltas (F, 4, 4)."""
-    return delta[..., :3, :3] @ point + delta[..., :3, 3]
-
-
-def _apply_each(delta, points):
-    """Points (F, 3) moved each by its frame's delta (F, 4, 4)."""
-    return (delta[..., :3, :3] @ points[..., None])[..., 0] + delta[..., :3, 3]
+    """Points (F, 3) of a point (3,), or of each frame's point (F, 3), moved by deltas (F, 4, 4)."""
+    return (delta[..., :3, :3] @ point[..., None])[..., 0] + delta[..., :3, 3]
 
 
 def _twist_to(rotation, axis, reference, wanted, weight):
@@ -284,7 +279,7 @@ def _clavicle_turns(rig, targets, deltas):
             continue
         head = rig.matrices[rig.clavicles[clavicle]][:3, 3]
         carrier = _carried(rig, deltas, clavicle, len(targets))
-        wanted = _apply_each(_rigid_inverse(carrier), targets[:, J[shoulder]]) - head
+        wanted = _apply(_rigid_inverse(carrier), targets[:, J[shoulder]]) - head
         initial = np.broadcast_to(rig.joints[J[shoulder]] - head, wanted.shape)
         axis = _unit(np.cross(initial, wanted))
         angle = np.arctan2(np.linalg.norm(np.cross(initial, wanted), axis=-1), np.sum(initial * wanted, axis=-1))
@@ -361,7 +356,7 @@ def _lean_to_hands(rig, targets, chest, pivot, pinned, turns, most=MAX_LEAN_TO_H
     for shoulder, elbow, wrist in LIMBS[2:]:
         reach = REACH_MARGIN * limb_length(start, (shoulder, elbow, wrist))
         centre = _apply(chest, pivot)
-        arm = _apply_each(chest, _shoulder_before_lean(rig, shoulder, turns, len(targets))) - centre
+        arm = _apply(chest, _shoulder_before_lean(rig, shoulder, turns, len(targets))) - centre
         goal = targets[:, J[wrist]] - centre
         r, d = np.linalg.norm(arm, axis=-1), np.linalg.norm(goal, axis=-1)
         between = np.arccos(np.clip(np.sum(arm * goal, -1) / np.maximum(r * d, 1e-12), -1.0, 1.0))
