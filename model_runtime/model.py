@@ -68,6 +68,11 @@ class ModelConfig:
     def to_dict(self):
         return asdict(self)
 
+    def network(self):
+        """The fields that shape the weights: all but dropout, which only training uses (weights
+        trained with one dropout fine-tune with another)."""
+        return {name: value for name, value in self.to_dict().items() if name != "dropout"}
+
 
 def _mlp(inputs, width, outputs, final_norm=True):
     layers = [nn.Linear(inputs, width), nn.LayerNorm(width), nn.LeakyReLU(0.1), nn.Linear(width, outputs)]

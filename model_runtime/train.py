@@ -360,6 +360,7 @@ def main(argv=None):
     parser.add_argument("--log-every", type=int, default=50, help="steps between progress lines")
     parser.add_argument("--validate-every", type=int, default=TrainConfig.validate_every)
     add_config_flags(parser, TrainConfig, taken=("learning_rate",))
+    add_config_flags(parser, ModelConfig)
     return distributed.run(_train, parser, parser.parse_args(argv))
 
 
@@ -379,7 +380,7 @@ def config_from_flags(config_type, args):
 
 def _train(parser, args, processes):
     config = config_from_flags(TrainConfig, args)
-    model_config = ModelConfig()
+    model_config = config_from_flags(ModelConfig, args)
     if args.threads:
         torch.set_num_threads(args.threads)
     out = Path(args.out)
@@ -407,7 +408,7 @@ def _train(parser, args, processes):
     elif args.init or args.second_stage_from:
         source = args.second_stage_from or args.init
         state, meta = weights.load_state(weights.model_file(source))
-        if meta["config"] != model_config.to_dict():
+        if ModelConfig(**meta["config"]).network() != model_config.network():
             parser.error(f"{source} holds a TrajeVAE of another configuration ({meta['config']})")
         if args.second_stage_from:
             with_fresh_completion_stage(state, model)

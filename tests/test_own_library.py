@@ -111,11 +111,12 @@ def test_two_processes_train_in_step_and_one_process_resumes_their_checkpoint(tm
 
 @pytest.fixture(scope="module")
 def studio_weights(tmp_path_factory, library):
-    """The bundled weights fine-tuned for a few steps on the library, and its sampler: a weights folder."""
+    """The bundled weights fine-tuned for a few steps on the library without dropout (the bundled
+    trained with it), and its sampler: a weights folder."""
     out = tmp_path_factory.mktemp("studio_weights")
     runs = tmp_path_factory.mktemp("runs")
     assert train.main(_data(library) + ["--init", str(weights.ASSETS), "--out", str(out), "--steps", "3",
-                                        "--completion-steps", "1", "--batch", "4", "--checkpoint",
+                                        "--completion-steps", "1", "--batch", "4", "--dropout", "0", "--checkpoint",
                                         str(runs / "model.pt")]) == 0
     assert train_sampler.main(_data(library) + ["--weights", str(out), "--steps", "2", "--batch", "2",
                                                 "--checkpoint", str(runs / "sampler.pt")]) == 0
@@ -127,6 +128,7 @@ def test_fine_tuning_writes_a_weights_folder_with_everything_the_addon_needs(stu
         weights.MODEL_FILE, weights.SAMPLER_FILE, weights.LIMITS_FILE, weights.CARD_FILE}
     _, meta = weights.load_state(studio_weights / weights.MODEL_FILE)
     assert meta["init"] == str(weights.ASSETS) and meta["data"]["train_clips"] == 3
+    assert meta["config"]["dropout"] == 0.0
     card = (studio_weights / weights.CARD_FILE).read_text()
     assert f"Fine-tuned from {weights.ASSETS}" in card and f"files under {library / 'held_out'}" in card
     assert "Not evaluated yet" in card
