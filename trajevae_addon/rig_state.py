@@ -148,11 +148,11 @@ def _drivers(armature, keyed):
     arms, copies the shoulder control) counts as that bone."""
     out = {}
     for bone in keyed:
-        parent = armature.data.bones[bone].parent
-        while parent is not None and parent.name not in keyed and _copied(armature, parent.name, keyed) is None:
+        parent, driver = armature.data.bones[bone].parent, None
+        while parent is not None and driver is None:
+            driver = parent.name if parent.name in keyed else _copied(armature, parent.name, keyed)
             parent = parent.parent
-        out[bone] = None if parent is None else parent.name if parent.name in keyed else _copied(
-            armature, parent.name, keyed)
+        out[bone] = driver
     return out
 
 
