@@ -364,3 +364,37 @@ def test_an_elbow_turns_to_a_keyed_bend_the_short_way_on_each_side_of_a_straight
     after = np.linalg.norm(np.diff(achieved[straight + 1:], axis=0), axis=-1)
     print(f"elbow after the straight frame: up to {100 * after.max():.1f} cm a frame")
     assert after.max() < 0.03
+
+
+def test_an_upper_arm_never_points_straight_back_for_a_hand_behind_and_above_the_shoulder(motion):
+    """A pinned hand carried from in front of its shoulder over to behind and above it, the generated
+    elbow hanging down and swinging from one side of the arm to the other (as a Rigify reach's body
+    turned from its curve did: the rig's upper arm pointed straight back at shoulder height, its
+    cosine with the body's forward -0.93 to -0.99 on a third of the frames): the rig's upper arm
+    keeps UPPER_ARM_BACK_COS, and its elbow turns there without a jump."""
+    rig, rest = _plain_rig(motion[0])
+    pose = motion[0]
+    shoulder, elbow, wrist = (JOINT_INDEX[name] for name in ("LShoulder", "LElbow", "LWrist"))
+    upper, lower = (np.linalg.norm(pose[b] - pose[a]) for a, b in ((shoulder, elbow), (elbow, wrist)))
+    across = (pose[shoulder] - pose[JOINT_INDEX["RShoulder"]]) * np.array([1.0, 1.0, 0.0])
+    across /= np.linalg.norm(across)
+    forward = retarget._facing(pose[None])[0]
+    up = np.cross(across, forward)
+    frames = 60
+    lift = np.radians(np.linspace(30.0, 150.0, frames))  # from the front, over the top, to behind
+    targets = np.repeat(pose[None], frames, axis=0)
+    targets[:, wrist] = pose[shoulder] + 0.6 * (upper + lower) * (
+        np.cos(lift)[:, None] * forward + np.sin(lift)[:, None] * up)
+    swing = np.linspace(0.1, -0.1, frames)[:, None] * across  # hanging, from outside to inside
+    targets[:, elbow] = pose[shoulder] + upper * (-0.95 * up + swing)
+    pinned = np.zeros(targets.shape[:2])
+    pinned[:, wrist] = 1.0
+    achieved = retarget.achieved_joints(rig, retarget.joint_deltas(rig, targets, pinned))
+    arm = achieved[:, elbow] - achieved[:, shoulder]
+    backward = np.sum(arm / np.linalg.norm(arm, axis=-1, keepdims=True) * retarget._facing(achieved), axis=-1)
+    steps = np.linalg.norm(np.diff(achieved[:, elbow], axis=0), axis=-1)
+    print(f"upper arm's least cosine with forward {backward.min():.3f} (floor {retarget.UPPER_ARM_BACK_COS}); "
+          f"elbow up to {100 * steps.max():.1f} cm a frame, hand {100 * np.linalg.norm(achieved[:, wrist] - targets[:, wrist], axis=-1).max():.1f} cm off")
+    assert backward.min() >= retarget.UPPER_ARM_BACK_COS - 0.01
+    assert steps.max() < 0.04
+    assert np.linalg.norm(achieved[:, wrist] - targets[:, wrist], axis=-1).max() < 0.005
