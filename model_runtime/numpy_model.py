@@ -17,7 +17,7 @@ import numpy as np
 from . import joint_angles, selection
 from .dct import dct_matrix
 from .masks import body_steps, per_coordinate
-from .skeleton import NUM_JOINTS
+from .skeleton import NUM_JOINTS, facing_turns, turned
 
 REINSTALL = "reinstall the TrajeVAE extension"
 # What a cut or damaged archive, member or array header raises.
@@ -154,6 +154,8 @@ class NumpyTrajeVAE:
         """(mean, log_var) (B, K, latent) and the encoded condition, for initial (B, 17, 3),
         trajectories (B, T, 17, 3) and mask (B, T, 17, 3) or (B, T, 17)."""
         w, heads = self.weights, self.config["heads"]
+        turns = self.turns(initial)
+        initial, trajectories = turned(initial, turns), turned(trajectories, turns)
         mask = per_coordinate(mask)
         pose_code = w.mlp("pose_encoder", initial.reshape(len(initial), -1).astype(np.float32))
         flat = (trajectories * mask).reshape(*mask.shape[:2], -1)
@@ -168,21 +170,22 @@ class NumpyTrajeVAE:
         frames = np.concatenate([condition, np.broadcast_to(pose_code[:, None], condition.shape), given], -1)
         condition_term = w.linear("decoder_input.0", frames.astype(np.float32), ".weight_condition")
         steps = body_steps(given[..., NUM_JOINTS * 3:NUM_JOINTS * 6].reshape(*mask.shape[:2], NUM_JOINTS, 3), mask)
-        return mean, np.clip(log_var, -10.0, 10.0), (initial, condition_term, steps)
+        return mean, np.clip(log_var, -10.0, 10.0), (initial, condition_term, steps) + turns
 
     def decode(self, z, encoded):
         """Poses (B, T, 17, 3) and foot contact logits (B, T, C) from latents (B, K, latent) and the
         encoded condition of ``prior`` (which carries the condition's share of the first layer, as in
         ``model.TrajeVAE.decode``)."""
         w = self.weights
-        initial, condition_term, steps = encoded
+        initial, condition_term, steps, cos, sin = encoded
         in_time = self.dct.T @ z.astype(np.float32)  # (T, K) @ (B, K, latent)
         first = w.linear("decoder_input.0", in_time, ".weight_latent", bias=None) + condition_term
         first = w.linear("decoder_input.3", _leaky(w.layer_norm("decoder_input.1", first)))
         hidden = w.transformer("decoder_transformer", first + self.time_code, self.config["heads"])
         output = w.linear("decoder_output.2", _leaky(w.linear("decoder_output.0", hidden)))
         offsets = output[..., :NUM_JOINTS * 3].reshape(*hidden.shape[:2], NUM_JOINTS, 3)
-        return initial[:, None] + np.cumsum(offsets + steps, axis=1), output[..., NUM_JOINTS * 3:]
+        poses = turned(initial[:, None] + np.cumsum(offsets + steps, axis=1), (cos, sin), back=True)
+        return poses, output[..., NUM_JOINTS * 3:]
 
     def sample(self, initial, trajectories, mask, count, rng, scale=1.0, sampler=None, keep_given=True,
                screen_given=True, decoded_only=False):
@@ -229,6 +232,8 @@ class NumpyTrajeVAE:
         """Decoded motions (B, count, T, 17, 3) through the completion stage, as ``model.TrajeVAE.complete``."""
         w = self.weights
         mask = per_coordinate(mask)
+        turns = self.turns(initial)
+        motion, initial, trajectories = (turned(part, turns) for part in (motion, initial, trajectories))
         pinned = _with_given_joints(motion, trajectories, mask)
         count, frames = motion.shape[1], mask.shape[1]
         relative = (pinned - initial[:, None, None]).reshape(len(motion), count, frames, -1)
@@ -240,7 +245,13 @@ class NumpyTrajeVAE:
         hidden = w.transformer("completion_transformer", hidden.reshape(-1, frames, hidden.shape[-1]) + self.time_code,
                                self.config["heads"])
         displacement = w.linear("completion_output", hidden).reshape(motion.shape)
-        return (pinned if keep_given else motion) + displacement * (1.0 - mask[:, None])
+        return turned((pinned if keep_given else motion) + displacement * (1.0 - mask[:, None]), turns, back=True)
+
+    def turns(self, initial):
+        """As ``model.TrajeVAE.turns``: (cos, sin) (B,) into the frame the network sees."""
+        if self.config.get("facing_frame", False):
+            return facing_turns(initial)
+        return np.ones(len(initial), initial.dtype), np.zeros(len(initial), initial.dtype)
 
     @staticmethod
     def _prior_latents(mean, log_var, count, rng, scale):

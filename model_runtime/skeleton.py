@@ -134,3 +134,26 @@ def facing(positions):
     forward = np.cross(across, UP_AXIS)
     forward[..., 2] = 0.0
     return forward / np.maximum(np.linalg.norm(forward, axis=-1, keepdims=True), 1e-9)
+
+
+def facing_turns(initial):
+    """Cosine and sine (B,) of the turn about Z that makes each pose of ``initial`` (B, 17, 3) face
+    +Y (``facing``), numpy or torch: the frame the model works in (``ModelConfig.facing_frame``).
+    Hips on one point (no facing) take no turn: the nanometre added forward decides only there."""
+    across = initial[:, JOINT_INDEX["LHip"]] - initial[:, JOINT_INDEX["RHip"]]
+    forward_x, forward_y = across[:, 1], 1e-9 - across[:, 0]
+    length = (forward_x * forward_x + forward_y * forward_y) ** 0.5
+    return forward_y / length, forward_x / length
+
+
+def turned(values, turns, back=False):
+    """Points (B, ..., 3), numpy or torch, turned about Z by ``turns`` (cos, sin) (B,), or by their
+    inverse (``back``)."""
+    cos, sin = turns
+    shape = (-1,) + (1,) * (values.ndim - 2)
+    cos, sin = cos.reshape(shape), (-sin if back else sin).reshape(shape)
+    out = np.empty_like(values) if isinstance(values, np.ndarray) else values.new_empty(values.shape)
+    out[..., 0] = cos * values[..., 0] - sin * values[..., 1]
+    out[..., 1] = sin * values[..., 0] + cos * values[..., 1]
+    out[..., 2] = values[..., 2]
+    return out

@@ -359,6 +359,8 @@ def main(argv=None):
     parser.add_argument("--threads", type=int, default=0, help="torch threads per process (0: torch's choice)")
     parser.add_argument("--log-every", type=int, default=50, help="steps between progress lines")
     parser.add_argument("--validate-every", type=int, default=TrainConfig.validate_every)
+    parser.add_argument("--facing-frame", action=argparse.BooleanOptionalAction, default=ModelConfig.facing_frame,
+                        help="the network sees each condition turned to face +Y (ModelConfig.facing_frame)")
     add_config_flags(parser, TrainConfig, taken=("learning_rate",))
     add_config_flags(parser, ModelConfig)
     return distributed.run(_train, parser, parser.parse_args(argv))

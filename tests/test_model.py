@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 import torch
 
-from model_runtime import masks, metrics, train, weights
+from model_runtime import augment, masks, metrics, train, weights
 from model_runtime.data import dataset
-from model_runtime.model import ModelConfig, with_given_joints
+from model_runtime.model import ModelConfig, TrajeVAE, reconstruct, with_given_joints
 from model_runtime.skeleton import JOINT_INDEX
 
 
@@ -48,6 +48,30 @@ def test_a_given_root_path_is_the_horizontal_base_step_of_every_joint_not_given(
         assert not base[:, :, joint, 2].any()  # but chooses its own height
     torch.testing.assert_close(masks.body_steps(torch.from_numpy(given * known), torch.from_numpy(known)),
                                torch.from_numpy(base))
+
+
+@pytest.mark.parametrize("facing_frame", [True, False])
+def test_in_the_facing_frame_a_condition_turned_about_z_gives_its_motion_turned(validation_windows, facing_frame):
+    """With ``facing_frame`` the network sees every condition turned to face +Y, so a curve drawn
+    toward any heading gets the same motion turned with it (prior draws, completion, posterior); a
+    network that sees the condition as given answers a turned one otherwise."""
+    torch.manual_seed(0)
+    network = TrajeVAE(ModelConfig(facing_frame=facing_frame)).eval()
+    with torch.no_grad():  # no zero-initialised heads: every weight matters
+        for parameter in network.parameters():
+            parameter.add_(0.05 * torch.randn_like(parameter))
+    mask = torch.from_numpy(np.broadcast_to(masks.evaluation_mask(3, 60), (4, 60, 17)).copy())
+    windows = validation_windows[:4]
+    motions = []
+    for angle in (0.0, 2.2):
+        turned = torch.from_numpy(augment.rotate_about_z(windows, np.full(len(windows), angle)).astype(np.float32))
+        initial, future = turned[:, 0], turned[:, 1:]
+        drawn = network.sample(initial, future * mask[..., None], mask, 3, generator=torch.Generator().manual_seed(1))
+        posterior = reconstruct(network, initial, future, mask)
+        motions.append([augment.rotate_about_z(m.numpy(), np.full(len(m), -angle)) for m in (drawn, posterior)])
+    difference = max(np.abs(a - b).max() for a, b in zip(*motions))
+    print(f"largest difference of the turned condition's motions turned back: {1000 * difference:.3f} mm")
+    assert (difference < 1e-4) if facing_frame else (difference > 1e-2)
 
 
 def test_samples_start_at_the_initial_pose_and_differ(model, validation_windows):

@@ -1,6 +1,7 @@
 """The numpy inference path (what runs in a stock Blender) agrees with the torch model."""
 
 import numpy as np
+import pytest
 import torch
 
 from model_runtime import masks, realism, weights
@@ -16,14 +17,15 @@ def _condition(all_clips, clips=2, count=3):
     return windows[:, 0], windows[:, 1:] * mask[..., None], mask
 
 
-def test_numpy_prior_and_decoder_match_torch(tmp_path, all_clips):
+@pytest.mark.parametrize("config", [ModelConfig(), ModelConfig(facing_frame=True)], ids=["as_given", "facing_frame"])
+def test_numpy_prior_and_decoder_match_torch(tmp_path, all_clips, config):
     torch.manual_seed(0)
-    torch_model = TrajeVAE(ModelConfig()).eval()
+    torch_model = TrajeVAE(config).eval()
     with torch.no_grad():  # no zero-initialised heads: every weight matters
         for parameter in torch_model.parameters():
             parameter.add_(0.05 * torch.randn_like(parameter))
     path = tmp_path / "model.npz"
-    weights.save(path, torch_model, ModelConfig())
+    weights.save(path, torch_model, config)
     numpy_model = NumpyTrajeVAE(path)
     initial, trajectories, mask = _condition(all_clips)
     with torch.no_grad():
