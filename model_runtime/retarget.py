@@ -585,11 +585,12 @@ def _upper_arm_back_turn(turn, bend, side, along, cos, forward, floor=UPPER_ARM_
     arm lies at arccos(``cos``) (F,) from the shoulder-to-hand line ``along`` (F, 3), so that cosine is
     a + b cos(turn - best) over the turn, and the allowed turns are those within arccos((floor - a) / b)
     of ``best`` (where none is, ``best`` itself: the upper arm as far forward as the hand allows).
-    Each stretch of frames that needs a turn takes it on the side of ``best``'s opposite that it
-    enters from (a stretch from the first frame that ends before the last: it leaves by), throughout: per frame, a
-    generated elbow crossing straight back moved the turn to the other side in a frame (55 degrees,
-    a Rigify reach), and on the side most of the stretch's frames lie, one entering from the other
-    side swung 65 degrees in a frame (67 m/s^2 on a mannequin wave's elbow, 39 without the turn)."""
+    Each stretch of frames that needs a turn takes it throughout on the side of ``best``'s opposite
+    that it enters from (a stretch from the first frame that ends before the last: it leaves by).
+    Chosen per frame, a generated elbow crossing straight back moved the turn to the other side in
+    a frame (55 degrees, a Rigify reach); chosen where most of the stretch's frames lie, one
+    entering from the other side swung 65 degrees in a frame (67 m/s^2 on a mannequin wave's
+    elbow, 39 without the turn)."""
     sin = np.sqrt(np.clip(1.0 - cos ** 2, 0.0, 1.0))
     across_x, across_y = np.sum(bend * forward, axis=-1), np.sum(side * forward, axis=-1)
     a = np.clip(cos, -1.0, 1.0) * np.sum(along * forward, axis=-1)
