@@ -230,15 +230,16 @@ def _contact_flags(motion, fps, standing, pinned, predicted, placed=None):
     return flags
 
 
-def _off_balance(motion):
+def _off_balance(motion, feet_forward=None):
     """The horizontal move (..., 2) that brings poses' (..., 17, 3) centre of mass onto their soles
-    (0 where it is on them): every point of the line between the ankles carries a sole turned
-    with the body, from SOLE_BACK_SHARE of a foot behind to SOLE_FRONT_SHARE ahead and
-    SOLE_SIDE_SHARE to either side, the soles together the feet's support. The nearest of them is
-    found over BALANCE_LINE_SAMPLES points of the line, then as many around the nearest."""
-    forward = facing(motion)[..., None, :2]
-    forward /= np.maximum(np.linalg.norm(forward, axis=-1, keepdims=True), 1e-9)
-    side = np.concatenate([forward[..., 1:], -forward[..., :1]], axis=-1)
+    (0 where it is on them): every point of the line between the ankles carries a sole, from
+    SOLE_BACK_SHARE of a foot behind to SOLE_FRONT_SHARE ahead and SOLE_SIDE_SHARE to either side,
+    the soles together the feet's support. The soles point along ``feet_forward`` (..., 2, 2)
+    (right, left; unit, horizontal), turned from one foot's way to the other's along the line;
+    without it, the way the body faces. The nearest of them is found over BALANCE_LINE_SAMPLES
+    points of the line, then as many around the nearest."""
+    if feet_forward is None:
+        feet_forward = np.repeat(facing(motion)[..., None, :2], 2, axis=-2)
     ankles = motion[..., indices(FEET), :2]  # (..., 2, 2)
     mass = centre_of_mass(motion)[..., None, :2]
     foot = footsteps.FOOT_M
@@ -246,6 +247,9 @@ def _off_balance(motion):
     def moves(along):
         """The moves (..., K, 2) onto the soles at the points ``along`` (..., K) of the line."""
         relative = mass - (ankles[..., :1, :] + along[..., None] * (ankles[..., 1:, :] - ankles[..., :1, :]))
+        forward = feet_forward[..., :1, :] + along[..., None] * (feet_forward[..., 1:, :] - feet_forward[..., :1, :])
+        forward = forward / np.maximum(np.linalg.norm(forward, axis=-1, keepdims=True), 1e-9)
+        side = np.concatenate([forward[..., 1:], -forward[..., :1]], axis=-1)
         ahead, across = np.sum(relative * forward, axis=-1), np.sum(relative * side, axis=-1)
         onto_ahead = np.clip(ahead, -SOLE_BACK_SHARE * foot, SOLE_FRONT_SHARE * foot) - ahead
         onto_side = np.clip(across, -SOLE_SIDE_SHARE * foot, SOLE_SIDE_SHARE * foot) - across
@@ -316,20 +320,26 @@ def balancing_steps(motion, fps, standing, pinned, initial, predicted, steps=Tru
     return np.stack([variant for variant, _ in stepped]), np.stack([placed for _, placed in stepped])
 
 
-def over_the_feet(motion, fps, standing, contacts, pinned):
+def over_the_feet(motion, fps, standing, contacts, pinned, initial, foot_turns):
     """Motion (V, F, 17, 3) whose body above the feet moves horizontally, the knees half as far,
     to keep its centre of mass over the soles (see SOLE_FRONT_SHARE) where both feet are down
     (planted, ``contacts`` (V, F, 2), or within CONTACT_HEIGHT_M of ``standing``, as a step
     lands), from one such frame's need to the next; the feet stay, and so do frames whose hips the
-    artist pinned (``pinned`` (F, 17))."""
+    artist pinned (``pinned`` (F, 17)). The soles point the way the pose ``initial`` (17, 3) faces,
+    turned by ``foot_turns`` (V, F, 2) (``plant_feet``'s, as the rig's feet turn): a body turned
+    35 degrees on its planted feet read as over them, and its centre of mass stood 12 cm off their
+    soles on the rig."""
     low = motion[..., indices(FEET), 2] - standing < CONTACT_HEIGHT_M
     both = (contacts | low).all(axis=-1)
     share = np.ones(motion.shape[2])  # how far each joint moves with the body
     share[indices(FEET)], share[[J["RKnee"], J["LKnee"]]] = 0.0, 0.5
     moved = JOINT_MASSES @ share  # the share of its move the centre of mass makes
     frames = np.arange(motion.shape[1])
+    ahead = facing(initial)[:2]
+    cos, sin = np.cos(foot_turns), np.sin(foot_turns)
+    feet_forward = np.stack([cos * ahead[0] - sin * ahead[1], sin * ahead[0] + cos * ahead[1]], axis=-1)  # (V, F, 2, 2)
     for _ in range(BALANCE_PASSES):
-        need = _off_balance(motion)  # (V, F, 2)
+        need = _off_balance(motion, feet_forward)  # (V, F, 2)
         move = np.zeros_like(need)
         for variant in np.flatnonzero(both.any(axis=1)):
             standing_frames = np.flatnonzero(both[variant])
@@ -719,7 +729,7 @@ def tidy(motion, fps, initial, targets, axes, keyed, predicted, walks=None):
     motion = without_slide(motion, fps, standing, on_curves, initial, targets, predicted, stance, placed)
     motion, contacts, turns = plant_feet(motion, fps, standing, on_curves, initial, predicted, stance, placed)
     if walks is None:
-        motion = over_the_feet(motion, fps, standing, contacts, on_curves)
+        motion = over_the_feet(motion, fps, standing, contacts, on_curves, initial, turns)
     else:
         fixed = set(targets).union(*keyed.values())
         motion = leaning_into_the_walk(motion, np.array([gait.lean for gait in walks.gaits]), fps, initial)
