@@ -70,10 +70,10 @@ KNEE_INWARD_DEG = 8.0
 # elbow is turned about the limb, the least way, until the upper arm keeps this.
 UPPER_ARM_BACK_COS = -0.9
 POLE_PRIOR = 0.2
-KEYED_BEND_TRUST = 0.05  # a keyed middle joint this far (upper-limb lengths) off its limb's line sets the bend
-# Frames trusted less than this (a keyed limb all but straight, or the key's weight all but gone:
-# a turn round by a whole circle there moves the pole 7 degrees at most) part the stretches a keyed
-# bend is turned to on its own.
+KEYED_BEND_TRUST = 0.05  # a keyed middle joint this far (upper-limb lengths) off its limb's line sets the bend,
+KEYED_BEND_SURE = 0.25  # ... bent the way its hinge bends it; this far, whichever way (see _limb)
+# Frames trusted less than this (a keyed limb all but straight, or the key's weight all but gone)
+# part the stretches a keyed bend is turned to on its own; each such frame takes it the short way round.
 KEYED_SPLIT = 0.02
 # No knee or elbow folds tighter than captured ones do: the cosine between the upper and lower
 # bones' directions stays above this (the fitted angle limits: -0.93 to -0.94).
@@ -535,13 +535,20 @@ def _limb(rig, targets, parent, upper, lower, end, heading, fixed, pitch=None, f
     # each stretch of frames the key is trusted on (the two blended as plain angles once spun an
     # elbow through 317 degrees in 5 frames before a key, and one wrapping from +180 to -180 degrees
     # while the key's weight eased out swung an elbow 8 cm in a frame; carried on across a straight
-    # frame, after an arms-up key, the turn went the long way round at 60 degrees a frame), and only
-    # as far as the keyed limb is bent at all (a straight arm's bend direction is noise that swung
-    # the elbow 5 cm in a frame).
-    as_keyed = fixed * np.clip(size / (KEYED_BEND_TRUST * first), 0.0, 1.0)
-    to_keyed = np.unwrap(np.angle(np.exp(1j * (angle - own))))
+    # frame, after an arms-up key, the turn went the long way round at 60 degrees a frame), each
+    # frame outside those stretches the short way round on its own (unwrapped over the whole shot, a
+    # knee whose generated bend had gone once round read a full turn from its own where the key's
+    # weight had all but gone: a 4-degree blip, 57 m/s^2), and only as far as the keyed limb is bent
+    # at all (a straight arm's bend direction is noise that swung the elbow 5 cm in a frame), and
+    # where it bends the way its hinge cannot, only as far as it is sure to (an arms-up key held all
+    # but straight, 1-2 cm off the line behind the hinge, swung the elbow 80 degrees round and back).
+    sure = np.clip(size / (KEYED_BEND_SURE * first), 0.0, 1.0)
+    as_keyed = fixed * np.clip(size / (KEYED_BEND_TRUST * first), 0.0, 1.0) * (sure + (1.0 - sure) * behind)
+    short_way = np.angle(np.exp(1j * (angle - own)))
+    to_keyed = short_way.copy()  # frames the key barely holds: each the short way round
     for first_frame, last_frame in runs(as_keyed > KEYED_SPLIT):  # each stretch the short way round on its own
         span = slice(first_frame, last_frame + 1)
+        to_keyed[span] = np.unwrap(short_way[span])
         to_keyed[span] -= 2.0 * np.pi * np.round(np.average(to_keyed[span], weights=as_keyed[span]) / (2.0 * np.pi))
     turn = own + as_keyed * to_keyed
     cos = (first ** 2 + reach ** 2 - second ** 2) / (2.0 * first * reach)
