@@ -255,14 +255,14 @@ class TrajeVAE(nn.Module):
         """
         mask = per_coordinate(mask)
         turns = self.turns(initial)
-        motion, initial, trajectories = (turned(part, turns) for part in (motion, initial, trajectories))
         pinned = with_given_joints(motion, trajectories, mask)
+        seen, initial = turned(pinned, turns), turned(initial, turns)
         count = motion.shape[1]
         initial, known = initial.repeat_interleave(count, 0), self._mask_input(mask).repeat_interleave(count, 0)
-        frames = torch.cat([(pinned.flatten(0, 1) - initial[:, None]).flatten(2),
+        frames = torch.cat([(seen.flatten(0, 1) - initial[:, None]).flatten(2),
                             initial.flatten(1)[:, None].expand(-1, known.shape[1], -1), known], dim=-1)
-        displacement = _in_chunks(self._displacement, frames).view(motion.shape)
-        return turned((pinned if keep_given else motion) + displacement * (1.0 - mask[:, None]), turns, back=True)
+        displacement = turned(_in_chunks(self._displacement, frames).view(motion.shape), turns, back=True)
+        return (pinned if keep_given else motion) + displacement * (1.0 - mask[:, None])
 
     def _displacement(self, frames):
         """The completion stage's displacements (N, T, J * 3) from its per-frame inputs (N, T, 2 * J * 3 + mask_size)."""

@@ -233,10 +233,10 @@ class NumpyTrajeVAE:
         w = self.weights
         mask = per_coordinate(mask)
         turns = self.turns(initial)
-        motion, initial, trajectories = (turned(part, turns) for part in (motion, initial, trajectories))
         pinned = _with_given_joints(motion, trajectories, mask)
+        seen, initial = turned(pinned, turns), turned(initial, turns)
         count, frames = motion.shape[1], mask.shape[1]
-        relative = (pinned - initial[:, None, None]).reshape(len(motion), count, frames, -1)
+        relative = (seen - initial[:, None, None]).reshape(len(motion), count, frames, -1)
         pose = np.broadcast_to(initial.reshape(len(motion), 1, 1, -1), relative.shape)
         joint_known = self._mask_input(mask)
         known = np.broadcast_to(joint_known[:, None], (len(motion), count) + joint_known.shape[1:])
@@ -244,8 +244,8 @@ class NumpyTrajeVAE:
                        final_norm=False)
         hidden = w.transformer("completion_transformer", hidden.reshape(-1, frames, hidden.shape[-1]) + self.time_code,
                                self.config["heads"])
-        displacement = w.linear("completion_output", hidden).reshape(motion.shape)
-        return turned((pinned if keep_given else motion) + displacement * (1.0 - mask[:, None]), turns, back=True)
+        displacement = turned(w.linear("completion_output", hidden).reshape(motion.shape), turns, back=True)
+        return (pinned if keep_given else motion) + displacement * (1.0 - mask[:, None])
 
     def turns(self, initial):
         """As ``model.TrajeVAE.turns``: (cos, sin) (B,) into the frame the network sees."""
