@@ -50,10 +50,13 @@ PELVIS_ROLL_FREE_DEG = 5.0
 PELVIS_ROLL_MOST_DEG = 10.0
 # Where joints are given, the first window draws its latents this much wider than the prior's spread
 # (times the artist's diversity): a curve narrows what the prior allows, and 5 variants of a hand
-# reach, picked as played, lay 0.126 m apart on the mannequin (seeds 0-5; 0.156 at 1.25 with
-# selection.SCREENED_FOLD_COS; 0.163 at 1.35 without it, worst frames up to 9x the median and 2 % of
-# frames off the joint-angle limits).
-GIVEN_SPREAD = 1.25
+# reach, picked as played, lay 0.126 m apart on the mannequin (seeds 0-5, weights before the facing
+# frame; 0.156 at 1.25 with selection.SCREENED_FOLD_COS). The facing-frame weights are surer of a
+# curve's body: seeds 0-3, mannequin / Rigify, a reach's variants 0.132 / 0.163 m apart at 1.25,
+# 0.152 / 0.166 at 1.4, a 10 s wave's 0.131 / 0.170 and 0.147 / 0.165, blocking keys' 0.056 / 0.064
+# and 0.060 / 0.071, worst frames at most 7.7x the median (at 1.5, wider still under curves where
+# the spread grew with the share of frames given, the keys' variants lay 0.047 m apart).
+GIVEN_SPREAD = 1.4
 # A later window that holds given joints (a curve, keys) shared by the motions (candidates the
 # variants are picked from as played, not walks along their own paths) draws CONTINUATION_DRAWS
 # continuations of each motion, CONTINUATION_SPREAD x the prior's spread, and keeps the one farthest

@@ -67,6 +67,8 @@ def render(meta, evaluation=None, before=None, folder=weights.ASSETS):
     paths = " ".join(map(_shown, data["paths"]))
     init = meta.get("init")
     fine_tuned = "" if init is None else f"\nFine-tuned from {init}."
+    facing = (" (the network sees each condition turned so its initial pose faces +Y, and turns its decodes back)"
+              if config.get("facing_frame") else "")
     if meta.get("second_stage_from"):
         fine_tuned += (f"\nThe second stage was trained alone (`--second-stage-from {meta['second_stage_from']}`) on the"
                        " first stage of the weights then there; a whole run trains the same second stage on its own"
@@ -116,7 +118,7 @@ motion, CMU 08 walks, ACCAD Male2 martial arts):
 
 Parameters: {meta['parameters']:,}. Training: {train['steps']} steps planned, batch
 {train['batch']}, Adam (lr {train['learning_rate']}, warm-up then cosine cycles of {train['cycle']} steps),
-beta {train['beta']}, random turns about Z and mirroring, seed {train['seed']}; masks mix the
+beta {train['beta']}, random turns about Z{facing} and mirroring, seed {train['seed']}; masks mix the
 paper's Bernoulli trajectories (p = 0.85 masked), the evaluation order, sparse keys, end
 poses, partial curves, ground paths and waypoints, and {masks.CARRIED_SHARE:.0%} of them carry their first
 1-{masks.CARRIED_FRAMES} frames whole, as a long shot's later windows do. {train['rest_start_share']:.0%} of the windows whose first
@@ -137,7 +139,8 @@ Then the second stage: the completion stage alone ({config['completion_layers']}
 {train['completion_steps']} steps (lr {train['completion_learning_rate']}, warm-up then one cosine decay), from the
 first stage's best validated weights, on their frozen decodes of posterior samples and, for
 {train['completion_mean_share']:.0%} of each batch, of the prior mean (squared error of the root and of the
-body relative to it, plus the realism terms), and of one prior draw per window, which answers
+body relative to it, plus the realism terms, the joint-angle limits at
+{train.get('completion_angle_weight', train['angle_weight'])}), and of one prior draw per window, which answers
 for its squared displacement ({train.get('completion_draw_weight', 0.0)} x), that displacement's squared
 frame-to-frame acceleration ({train.get('completion_draw_smoothness', 0.0)} x) and the realism terms but foot sliding
 (the product's foot lock holds planted feet), so the stage fits draws to what is given without

@@ -58,7 +58,7 @@ TORSO_SEGMENTS = tuple((JOINT_NAMES[parent], name) for name, parent in zip(JOINT
 
 @dataclass(frozen=True)
 class TrainConfig:
-    steps: int = 3500  # first stage
+    steps: int = 7000  # first stage: two cosine cycles
     completion_steps: int = 1000  # second stage: the completion stage alone
     completion_learning_rate: float = 3e-4  # warm-up, then one cosine decay
     completion_mean_share: float = 0.25  # of each second-stage batch, decoded from the prior mean
@@ -75,6 +75,7 @@ class TrainConfig:
     skating_weight: float = 1.0  # squared horizontal speed (m/s) of planted feet, summed over frames and feet
     floor_weight: float = 100.0  # squared depth of an ankle below the window's lowest, summed over frames
     angle_weight: float = 2.0  # GSPS: squared cosine outside the joint-angle limits, summed over frames
+    completion_angle_weight: float = 10.0  # the same in the second stage (``completion_losses``)
     prior_realism_share: float = 0.5  # weight of the realism terms on the prior sample
     prior_known_weight: float = 1.0  # the prior sample's squared error on the known coordinates
     body_relative_share: float = 0.0  # of the root's error taken from unknown joints' (``body_relative``)
@@ -150,8 +151,8 @@ def body_lengths(poses):
     return torch.cat([rigid_bone_lengths(poses), ((second - first) ** 2).sum(-1) ** 0.5], dim=-1)
 
 
-def weighted_realism(terms, config):
-    return (config.bone_weight * terms["bones"] + config.angle_weight * terms["angles"]
+def weighted_realism(terms, config, angle_weight):
+    return (config.bone_weight * terms["bones"] + angle_weight * terms["angles"]
             + config.skating_weight * terms["skating"] + config.floor_weight * terms["floor"])
 
 
@@ -178,7 +179,8 @@ def losses(model, initial, future, mask, contacts, limits, config):
                                   prior_planted(decoded.prior_motion, decoded.prior_contacts, future), limits)
     total = (known + unknown + config.prior_known_weight * prior_known + config.beta * kl
              + config.contact_weight * contact
-             + weighted_realism(realism_now, config) + config.prior_realism_share * weighted_realism(realism_prior, config))
+             + weighted_realism(realism_now, config, config.angle_weight)
+             + config.prior_realism_share * weighted_realism(realism_prior, config, config.angle_weight))
     parts = {"known": known.item(), "prior_known": prior_known.item(), "unknown": unknown.item(), "kl": kl.item(),
              "contact": contact.item()}
     parts.update({name: value.item() for name, value in realism_now.items()})
@@ -228,8 +230,10 @@ def completion_losses(model, completion, initial, future, mask, contacts, limits
     holding the draws' feet as well froze the shifts of weight and shuffles the variants differ by
     (a standing shot's five variants 0.10 m apart, against 0.15 without), and the product's foot
     lock holds planted feet anyway. Draws alone, without the capture's future, left bodies leaning
-    half a metre off their feet; the angle limits at 5x their weight cost 1.5 % best-of-50 error and
-    stretched bones 30 % more.
+    half a metre off their feet. The joint-angle limits weigh ``completion_angle_weight`` here, 5x the
+    first stage's: the facing-frame weights' frames off the limits at k = 0 / 1 went from 3.1x / 5.8x
+    the capture's to 2.7x / 3.7x for 0.6-2.1 % more best-of-50 error (an earlier model's bones
+    stretched 30 % more at 5x).
     """
     given = future * masks.per_coordinate(mask)
     model.eval()
@@ -250,7 +254,8 @@ def completion_losses(model, completion, initial, future, mask, contacts, limits
     terms = realism_terms(completed_fit, initial, future, contacts, limits)
     draw_terms = realism_terms(completed_draw, initial, future, torch.zeros_like(contacts), limits)  # no feet held
     total = (error + config.completion_draw_weight * displacement + config.completion_draw_smoothness * jerk
-             + weighted_realism(terms, config) + weighted_realism(draw_terms, config))
+             + weighted_realism(terms, config, config.completion_angle_weight)
+             + weighted_realism(draw_terms, config, config.completion_angle_weight))
     parts = {"completion": error.item(), "displacement": displacement.item(), "jerk": jerk.item()}
     parts.update({name: value.item() for name, value in terms.items()})
     parts.update({"draw_" + name: value.item() for name, value in draw_terms.items() if name != "skating"})

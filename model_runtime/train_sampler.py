@@ -48,7 +48,7 @@ class SamplerTrainConfig:
     accuracy_weight: float = 100.0
     kl_weight: float = 1.0
     angle_weight: float = 300.0
-    bone_weight: float = 6000.0
+    bone_weight: float = 12000.0
     skating_weight: float = 100.0
     empty_mask_share: float = 0.5
     seed: int = 0
