@@ -302,6 +302,17 @@ def test_a_free_arm_keeps_its_pose_against_the_rigs_shoulder(motion):
         assert np.linalg.norm(wrist - targets[:, JOINT_INDEX[side + "Wrist"]], axis=-1).mean() > 0.05, side
 
 
+def _left_arm(pose):
+    """The left arm's joint indices, its upper and lower bones' lengths and, at its shoulder, the
+    pose's forward and the way perpendicular to it and to the shoulders that points down (3,)."""
+    shoulder, elbow, wrist = (JOINT_INDEX[name] for name in ("LShoulder", "LElbow", "LWrist"))
+    upper, lower = (np.linalg.norm(pose[b] - pose[a]) for a, b in ((shoulder, elbow), (elbow, wrist)))
+    across = pose[shoulder] - pose[JOINT_INDEX["RShoulder"]]
+    forward = np.cross([0.0, 0.0, 1.0], across)
+    forward /= np.linalg.norm(forward)
+    return shoulder, elbow, wrist, upper, lower, forward, np.cross(forward, across / np.linalg.norm(across))
+
+
 def test_an_elbow_turns_about_its_arm_a_little_each_frame_where_the_model_flips_it(motion):
     """A pinned hand held 0.2 m in front of its shoulder, the arm folded, while the generated elbow
     flips from one side of the arm to the other in a frame (as the model's did where a Rigify
@@ -309,10 +320,7 @@ def test_an_elbow_turns_about_its_arm_a_little_each_frame_where_the_model_flips_
     over to the new side at MAX_POLE_DEG_PER_FRAME, no faster (35 cm in a frame without), and gets there."""
     rig, rest = _plain_rig(motion[0])
     pose = motion[0]
-    shoulder, elbow, wrist = (JOINT_INDEX[name] for name in ("LShoulder", "LElbow", "LWrist"))
-    across = pose[shoulder] - pose[JOINT_INDEX["RShoulder"]]
-    forward = np.cross([0.0, 0.0, 1.0], across)
-    forward /= np.linalg.norm(forward)
+    shoulder, elbow, wrist, _, _, forward, _ = _left_arm(pose)
     frames, flip = 45, 15
     targets = np.repeat(pose[None], frames, axis=0)
     targets[:, wrist] = pose[shoulder] + 0.2 * forward
@@ -338,12 +346,7 @@ def test_an_elbow_turns_to_a_keyed_bend_the_short_way_on_each_side_of_a_straight
     spun the long way round (60 degrees a frame, the elbow at 78 m/s^2)."""
     rig, rest = _plain_rig(motion[0])
     pose = motion[0]
-    shoulder, elbow, wrist = (JOINT_INDEX[name] for name in ("LShoulder", "LElbow", "LWrist"))
-    upper, lower = (np.linalg.norm(pose[b] - pose[a]) for a, b in ((shoulder, elbow), (elbow, wrist)))
-    across = pose[shoulder] - pose[JOINT_INDEX["RShoulder"]]
-    forward = np.cross([0.0, 0.0, 1.0], across)
-    forward /= np.linalg.norm(forward)
-    down = np.cross(forward, across / np.linalg.norm(across))
+    shoulder, elbow, wrist, upper, lower, forward, down = _left_arm(pose)
     frames, straight = 60, 30
     reach = np.where(np.arange(frames) == straight, 1.0, 0.85) * (upper + lower)
     targets = np.repeat(pose[None], frames, axis=0)
@@ -376,12 +379,7 @@ def test_a_nearly_straight_keyed_arm_bent_backwards_does_not_swing_the_elbow(mot
     frame); now 12 cm at 11 m/s^2, as far as the bend is sure (KEYED_BEND_SURE)."""
     rig, rest = _plain_rig(motion[0])
     pose = motion[0]
-    shoulder, elbow, wrist = (JOINT_INDEX[name] for name in ("LShoulder", "LElbow", "LWrist"))
-    upper, lower = (np.linalg.norm(pose[b] - pose[a]) for a, b in ((shoulder, elbow), (elbow, wrist)))
-    across = pose[shoulder] - pose[JOINT_INDEX["RShoulder"]]
-    forward = np.cross([0.0, 0.0, 1.0], across)
-    forward /= np.linalg.norm(forward)
-    down = np.cross(forward, across / np.linalg.norm(across))
+    shoulder, elbow, wrist, upper, lower, forward, down = _left_arm(pose)
     frames, key = 40, 20
     targets = np.repeat(pose[None], frames, axis=0)
     targets[:, wrist] = pose[shoulder] + 0.8 * (upper + lower) * forward
