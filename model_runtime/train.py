@@ -367,16 +367,16 @@ def main(argv=None):
     parser.add_argument("--facing-frame", action=argparse.BooleanOptionalAction, default=ModelConfig.facing_frame,
                         help="the network sees each condition turned to face +Y (ModelConfig.facing_frame)")
     add_config_flags(parser, TrainConfig, taken=("learning_rate",))
-    add_config_flags(parser, ModelConfig)
+    add_config_flags(parser, ModelConfig, kinds=(float, int))  # the network's sizes too
     return distributed.run(_train, parser, parser.parse_args(argv))
 
 
-def add_config_flags(parser, config_type, taken=()):
-    """A --flag per float field of a config dataclass (loss weights, shares, margins: for experiments
-    one command reproduces), but the fields in ``taken``, which have flags of their own."""
+def add_config_flags(parser, config_type, taken=(), kinds=(float,)):
+    """A --flag per field of a config dataclass of the ``kinds`` (loss weights, shares, margins: for
+    experiments one command reproduces), but the fields in ``taken``, which have flags of their own."""
     for field in fields(config_type):
-        if field.type is float and field.name not in taken:
-            parser.add_argument("--" + field.name.replace("_", "-"), type=float, default=field.default)
+        if field.type in kinds and field.name not in taken:
+            parser.add_argument("--" + field.name.replace("_", "-"), type=field.type, default=field.default)
 
 
 def config_from_flags(config_type, args):
