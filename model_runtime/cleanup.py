@@ -20,7 +20,7 @@ from . import footsteps
 from .filters import runs, smooth, smoothstep, window_max, window_min
 from .retarget import steady_across
 from .rotations import turned
-from .skeleton import (FEET, JOINT_INDEX, JOINT_MASSES, LIMBS, UPPER_BODY, centre_of_mass, facing, indices,
+from .skeleton import (FEET, JOINT_INDEX, JOINT_MASSES, LIMBS, UP_AXIS, UPPER_BODY, centre_of_mass, facing, indices,
                        limb_length, lower_ankle_height, shortest_leg)
 
 J = JOINT_INDEX
@@ -335,9 +335,7 @@ def over_the_feet(motion, fps, standing, contacts, pinned, initial, foot_turns):
     share[indices(FEET)], share[[J["RKnee"], J["LKnee"]]] = 0.0, 0.5
     moved = JOINT_MASSES @ share  # the share of its move the centre of mass makes
     frames = np.arange(motion.shape[1])
-    ahead = facing(initial)[:2]
-    cos, sin = np.cos(foot_turns), np.sin(foot_turns)
-    feet_forward = np.stack([cos * ahead[0] - sin * ahead[1], sin * ahead[0] + cos * ahead[1]], axis=-1)  # (V, F, 2, 2)
+    feet_forward = turned(np.broadcast_to(facing(initial), foot_turns.shape + (1, 3)), UP_AXIS, foot_turns)[..., 0, :2]
     for _ in range(BALANCE_PASSES):
         need = _off_balance(motion, feet_forward)  # (V, F, 2)
         move = np.zeros_like(need)
