@@ -6,7 +6,8 @@ traj_err (mean distance of the conditioned joints to their trajectories), MPD
 (minimum pairwise distance among the K samples) and realism: bone_dev (mean
 rigid bone-length deviation from the initial pose, m), angle_out (share of
 frames outside the joint-angle limits), skating (horizontal foot speed in
-contact, m/s); the ground truth's own realism figures are printed beside.
+contact, m/s), turn (mean absolute turn about Z from the initial pose to the
+last frame, degrees); the ground truth's own realism figures are printed beside.
 ``--json`` writes {"methods": {method: {"k": {"0": {metric: value}, ...}}},
 "ground_truth": {...}, "windows": n, "samples": K, "seconds": s}.
 By default the windows come from the validation subjects; ``--data`` takes
@@ -41,8 +42,8 @@ from .model import reconstruct
 from .sampler import prior_motions, sample_motions
 
 METHODS = ("trajevae", "trajevae_mean", "trajevae_posterior", "sampler", "pinned_pose", "nearest_neighbour")
-METRICS = ("APD", "ADE", "FDE", "MMADE", "MMFDE", "traj_err", "MPD", "bone_dev", "angle_out", "skating")
-REALISM = ("bone_dev", "angle_out", "skating")
+METRICS = ("APD", "ADE", "FDE", "MMADE", "MMFDE", "traj_err", "MPD", "bone_dev", "angle_out", "skating", "turn")
+REALISM = ("bone_dev", "angle_out", "skating", "turn")
 
 
 def generate(method, model, neighbours, windows, mask, samples, generator, diverse_sampler=None, screen_limits=None):
@@ -92,10 +93,10 @@ def score(motions, windows, mask, groups, limits):
 
 
 def realism_figures(motions, windows, limits):
-    """bone_dev, angle_out, skating of motions (N, K, T, 17, 3) from windows' initial poses."""
+    """bone_dev, angle_out, skating, turn of motions (N, K, T, 17, 3) from windows' initial poses."""
     initial = np.broadcast_to(windows[:, None, 0], motions.shape[:2] + windows.shape[2:])
     return [realism.bone_length_deviation(motions, initial), realism.share_outside_limits(motions, limits),
-            realism.foot_skating(motions, clips.NATIVE_FPS)]
+            realism.foot_skating(motions, clips.NATIVE_FPS), realism.turn(motions, initial)]
 
 
 def evaluate(windows, model, neighbours, samples=50, seed=0, methods=METHODS, diverse_sampler=None,

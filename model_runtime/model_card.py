@@ -23,7 +23,7 @@ def table(evaluation):
     for method, entry in evaluation["methods"].items():
         for k, row in entry["k"].items():
             rows.append(f"| {method} | {k} | " + " | ".join(
-                "-" if row[m] is None else f"{row[m]:.3f}" for m in METRICS) + " |")
+                "-" if row.get(m) is None else f"{row[m]:.3f}" for m in METRICS) + " |")  # older tables lack turn
     truth = evaluation.get("ground_truth", {})
     rows.append("| ground truth | | " + " | ".join(f"{truth[m]:.3f}" if m in truth else "" for m in METRICS) + " |")
     return "\n".join(rows)

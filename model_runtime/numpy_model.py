@@ -17,7 +17,7 @@ import numpy as np
 from . import joint_angles, selection
 from .dct import dct_matrix
 from .masks import body_steps, per_coordinate
-from .skeleton import NUM_JOINTS, facing_turns, turned
+from .skeleton import NUM_JOINTS, facing_turns, turned, turned_about_root
 
 REINSTALL = "reinstall the TrajeVAE extension"
 # What a cut or damaged archive, member or array header raises.
@@ -183,9 +183,13 @@ class NumpyTrajeVAE:
         first = w.linear("decoder_input.3", _leaky(w.layer_norm("decoder_input.1", first)))
         hidden = w.transformer("decoder_transformer", first + self.time_code, self.config["heads"])
         output = w.linear("decoder_output.2", _leaky(w.linear("decoder_output.0", hidden)))
-        offsets = output[..., :NUM_JOINTS * 3].reshape(*hidden.shape[:2], NUM_JOINTS, 3)
-        poses = turned(initial[:, None] + np.cumsum(offsets + steps, axis=1), (cos, sin), back=True)
-        return poses, output[..., NUM_JOINTS * 3:]
+        coords, turning = NUM_JOINTS * 3, self.config.get("heading_channel", False)
+        offsets = output[..., :coords].reshape(*hidden.shape[:2], NUM_JOINTS, 3)
+        poses = initial[:, None] + np.cumsum(offsets + steps, axis=1)
+        if turning:
+            heading = np.cumsum(output[..., -1], axis=1)
+            poses = turned_about_root(poses, (np.cos(heading), np.sin(heading)))
+        return turned(poses, (cos, sin), back=True), output[..., coords:output.shape[-1] - turning]
 
     def sample(self, initial, trajectories, mask, count, rng, scale=1.0, sampler=None, keep_given=True,
                screen_given=True, decoded_only=False):

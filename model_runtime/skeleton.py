@@ -146,11 +146,18 @@ def facing_turns(initial):
     return forward_y / length, forward_x / length
 
 
+def turned_about_root(poses, turns):
+    """Poses (B, T, J, 3), numpy or torch, each frame turned about the vertical through its root joint
+    by ``turns`` (cos, sin) (B, T)."""
+    root = poses[:, :, :1]
+    return root + turned(poses - root, turns)
+
+
 def turned(values, turns, back=False):
-    """Points (B, ..., 3), numpy or torch, turned about Z by ``turns`` (cos, sin) (B,), or by their
-    inverse (``back``)."""
+    """Points (B, ..., 3), numpy or torch, turned about Z by ``turns`` (cos, sin) (B,) or (B, T) (one
+    turn per frame of points (B, T, ..., 3)), or by their inverse (``back``)."""
     cos, sin = turns
-    shape = (-1,) + (1,) * (values.ndim - 2)
+    shape = tuple(cos.shape) + (1,) * (values.ndim - 1 - cos.ndim)
     cos, sin = cos.reshape(shape), (-sin if back else sin).reshape(shape)
     out = np.empty_like(values) if isinstance(values, np.ndarray) else values.new_empty(values.shape)
     out[..., 0] = cos * values[..., 0] - sin * values[..., 1]

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import torch
 
-from model_runtime import augment, masks, metrics, train, weights
+from model_runtime import augment, masks, metrics, realism, train, weights
 from model_runtime.data import dataset
 from model_runtime.model import ModelConfig, TrajeVAE, reconstruct, with_given_joints
 from model_runtime.skeleton import JOINT_INDEX
@@ -56,15 +56,16 @@ def test_in_the_facing_frame_a_condition_turned_about_z_gives_its_motion_turned(
     toward any heading gets the same motion turned with it (prior draws, completion, posterior); a
     network that sees the condition as given answers a turned one otherwise."""
     torch.manual_seed(0)
-    network = TrajeVAE(ModelConfig(facing_frame=facing_frame)).eval()
+    network = TrajeVAE(ModelConfig(facing_frame=facing_frame, heading_channel=True)).eval()
     with torch.no_grad():  # no zero-initialised heads: every weight matters
         for parameter in network.parameters():
             parameter.add_(0.05 * torch.randn_like(parameter))
-    mask = torch.from_numpy(np.broadcast_to(masks.evaluation_mask(3, 60), (4, 60, 17)).copy())
-    windows = validation_windows[:4]
+    network.double()  # a random network turns its bodies by ~10 rad in a window: float32 rounding alone reached 0.4 mm
+    mask = torch.from_numpy(np.broadcast_to(masks.evaluation_mask(3, 60), (4, 60, 17)).astype(np.float64))
+    windows = validation_windows[:4].astype(np.float64)
     motions = []
     for angle in (0.0, 2.2):
-        turned = torch.from_numpy(augment.rotate_about_z(windows, np.full(len(windows), angle)).astype(np.float32))
+        turned = torch.from_numpy(augment.rotate_about_z(windows, np.full(len(windows), angle)))
         initial, future = turned[:, 0], turned[:, 1:]
         drawn = network.sample(initial, future * mask[..., None], mask, 3, generator=torch.Generator().manual_seed(1))
         posterior = reconstruct(network, initial, future, mask)
@@ -195,6 +196,30 @@ def test_reconstructions_score_the_root_apart_from_the_body():
     scaled = train.body_relative(shift.expand(2, 60, 17, 3), 1.0, 0.3)  # a whole-body shift: the root's row alone
     torch.testing.assert_close(scaled[..., 0, :], 0.3 * shift.expand(2, 60, 3))
     torch.testing.assert_close(scaled[..., 1:, :], torch.zeros(2, 60, 16, 3))
+
+
+def test_best_of_many_scores_the_nearest_of_a_windows_prior_draws(validation_windows):
+    """With ``best_of_draws`` the training pass decodes that many distinct prior samples per window and
+    the loss takes the error of the one nearest the capture, which a single draw would not reach."""
+    torch.manual_seed(0)
+    network = TrajeVAE(ModelConfig())
+    with torch.no_grad():  # no zero-initialised heads: the draws differ
+        for parameter in network.parameters():
+            parameter.add_(0.05 * torch.randn_like(parameter))
+    windows = torch.from_numpy(validation_windows[:8])
+    initial, future = windows[:, 0], windows[:, 1:]
+    mask = torch.from_numpy(np.broadcast_to(masks.evaluation_mask(1, 60), (8, 60, 17)).copy())
+    torch.manual_seed(1)
+    decoded = network(initial, future, mask, 4)
+    draws = torch.cat([decoded.prior_motion[:, None], decoded.more_prior_motions], dim=1)
+    assert draws.shape == (8, 4, 60, 17, 3) and draws.std(dim=1).mean() > 0.01
+    errors = ((draws - future[:, None]) ** 2).flatten(2).sum(-1)
+    assert errors.amin(dim=1).mean() < 0.9 * errors[:, 0].mean()
+    limits = realism.load_angle_limits()
+    torch.manual_seed(1)
+    _, parts = train.losses(network, initial, future, mask, torch.zeros(8, 60, 2), limits,
+                            train.TrainConfig(best_of_draws=4, best_of_weight=1.0))
+    assert parts["best_of"] == pytest.approx(errors.amin(dim=1).mean().item(), rel=1e-5)
 
 
 def test_training_runs_checkpoints_resumes_and_its_second_stage_depends_only_on_the_first(tmp_path):

@@ -17,8 +17,8 @@ def _condition(all_clips, clips=2, count=3):
     return windows[:, 0], windows[:, 1:] * mask[..., None], mask
 
 
-@pytest.mark.parametrize("config", [ModelConfig(facing_frame=False), ModelConfig(facing_frame=True)],
-                         ids=["as_given", "facing_frame"])
+@pytest.mark.parametrize("config", [ModelConfig(facing_frame=False), ModelConfig(heading_channel=True)],
+                         ids=["as_given", "facing_frame_and_heading"])
 def test_numpy_prior_and_decoder_match_torch(tmp_path, all_clips, config):
     torch.manual_seed(0)
     torch_model = TrajeVAE(config).eval()

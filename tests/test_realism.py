@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import torch
 
-from model_runtime import joint_angles, realism
+from model_runtime import augment, joint_angles, realism
 from model_runtime.data import dataset
 from model_runtime.skeleton import JOINT_INDEX
 
@@ -76,3 +76,13 @@ def test_limits_are_open_at_a_cosines_pole_where_captured_poses_come_close(valid
     assert np.percentile(_cosine(poses, "left_thigh_forward"), 99.9) > np.cos(np.radians(realism.POLE_DEG))
     assert realism.fit_angle_limits(poses)["high"][name] == 1.0
     assert realism.fit_angle_limits(validation_poses)["high"][name] < 1.0  # untouched away from the pole
+
+
+def test_turn_is_the_angle_a_pose_was_turned_by_about_its_hips(validation_poses):
+    poses = validation_poses[:40].astype(np.float64)
+    angles = np.radians(np.linspace(-170.0, 170.0, len(poses)))
+    hips = poses[:, :1]
+    turned = hips + augment.rotate_about_z(poses - hips, angles)
+    motion = np.stack([poses, turned + [0.7, -0.3, 0.05]], axis=1)  # (N, 2, 17, 3): turned, and moved on
+    assert realism.turn(motion, poses) == pytest.approx(np.degrees(np.abs(angles)).mean(), abs=1e-6)
+    assert realism.turn(poses[:, None], poses) == pytest.approx(0.0, abs=1e-9)
