@@ -117,11 +117,10 @@ class TrainingPass:
 
     reconstruction: torch.Tensor  # from a posterior sample
     contacts: torch.Tensor
-    prior_motion: torch.Tensor  # from a prior sample, as the product draws
-    prior_contacts: torch.Tensor
+    prior_motions: torch.Tensor  # (B, draws, T, J, 3) from prior samples, as the product draws
+    prior_contacts: torch.Tensor  # (B, draws, T, C)
     prior: tuple
     posterior: tuple
-    more_prior_motions: torch.Tensor  # (B, draws - 1, T, J, 3): further prior samples
 
 
 class TrajeVAE(nn.Module):
@@ -264,8 +263,8 @@ class TrajeVAE(nn.Module):
                       + [prior_mean + torch.randn_like(prior_mean) * prior_std for _ in range(draws)])
         motion, contacts = self.decode(z, tuple(torch.cat([part] * (1 + draws)) for part in encoded))
         motion, contacts = motion.unflatten(0, (1 + draws, -1)), contacts.unflatten(0, (1 + draws, -1))
-        return TrainingPass(motion[0], contacts[0], motion[1], contacts[1], (prior_mean, prior_log_var),
-                            (post_mean, post_log_var), motion[2:].transpose(0, 1))
+        return TrainingPass(motion[0], contacts[0], motion[1:].transpose(0, 1), contacts[1:].transpose(0, 1),
+                            (prior_mean, prior_log_var), (post_mean, post_log_var))
 
     def complete(self, motion, initial, trajectories, mask, keep_given=True):
         """Decoded samples (B, count, T, J, 3) through the completion stage, for conditions (B, ...).

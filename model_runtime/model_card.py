@@ -5,6 +5,7 @@ never drifts from the model. Training writes one without the evaluation."""
 import argparse
 import json
 import sys
+from dataclasses import asdict
 from pathlib import Path
 
 from . import masks, selection, weights
@@ -67,6 +68,11 @@ def render(meta, evaluation=None, before=None, folder=weights.ASSETS):
     paths = " ".join(map(_shown, data["paths"]))
     init = meta.get("init")
     fine_tuned = "" if init is None else f"\nFine-tuned from {init}."
+    command = f"python -m model_runtime.train --data {paths}" + ("" if init is None else f" --init {init}") + _flags(train)
+    count = train.get("best_of_draws", 1)
+    draws = "one prior sample" if count == 1 else f"each of {count} prior samples"
+    best_of = ("" if not train.get("best_of_weight") else
+               f"; the one nearest the capture answers for its squared error ({train['best_of_weight']} x, best of many)")
     facing = (" (the network sees each condition turned so its initial pose faces +Y, and turns its decodes back)"
               if config.get("facing_frame") else "")
     if meta.get("second_stage_from"):
@@ -83,7 +89,7 @@ def render(meta, evaluation=None, before=None, folder=weights.ASSETS):
 
 Pose completion for motion from trajectories (Kania, Kowalski, Trzcinski), scaled
 for the CPU. File: `{weights.MODEL_FILE}` in this folder (plain arrays and a JSON config; no
-pickled code). Reproduce with `python -m model_runtime.train --data {paths}`{'' if init is None else ' --init ' + init}
+pickled code). Reproduce with `{command}`
 (then `python -m model_runtime.train_sampler` with the same data).
 
 ## What it does
@@ -128,8 +134,8 @@ paper's (squared error, KL; the error in absolute positions where a coordinate i
 it is not, with {train.get('body_relative_share', 0.0)} x the root's error taken off the other joints' and the root's own
 at {train.get('unknown_root_weight', 1.0)} x) plus foot contacts (cross-entropy of the predicted contacts
 against labels from the capture's sole height and ankle speed, weight {train['contact_weight']}) and
-GSPS realism on the reconstruction and, at {train['prior_realism_share']} x, on one prior sample per window,
-whose squared error on the known coordinates also counts ({train['prior_known_weight']} x):
+GSPS realism on the reconstruction and, at {train['prior_realism_share']} x, on {draws} per window,
+whose squared error on the known coordinates also counts ({train['prior_known_weight']} x){best_of}:
 lengths of the rigid bones and torso segments ({train['bone_weight']}), joint-angle limits fitted on the
 training poses ({train['angle_weight']}),
 squared speed of planted feet ({train['skating_weight']}; on the prior sample, the feet it predicts planted
@@ -151,6 +157,15 @@ validation best-of-10 ADE {meta['validation_ade_m']:.4f} m.
 ## Evaluation
 {evaluation_section(evaluation, folder)}
 {previous}"""
+
+
+def _flags(train):
+    """The training command's flags for the fields of a weights file's training configuration that
+    differ from ``TrainConfig``'s defaults ('' for a default run)."""
+    from .train import TrainConfig  # train writes cards: imported here, not at the top
+    defaults = asdict(TrainConfig())
+    return "".join(f" --{name.replace('_', '-')} {value}" for name, value in train.items()
+                   if name in defaults and value != defaults[name])
 
 
 def write(folder, evaluation=None, before=None):
