@@ -238,7 +238,7 @@ class TrajeVAE(nn.Module):
         turn more than 45 degrees in 2 s where the capture does in 23 % of the validation windows, and
         even their posterior's decodes of training windows turn 43 degrees where the capture turns 108.
         Under trial: 2500 steps with the channel validated as without it (best-of-10 ADE 0.734 against
-        0.732) and had not yet learned to use it (out/h1 resumes that run).
+        0.732) and had not yet learned to use it (2 degrees summed over 2 s).
         """
         in_time = torch.einsum("kt,bkl->btl", self.dct, z)
         first = nn.functional.linear(in_time, self.decoder_input[0].weight[:, :self.config.latent]) + condition_term
