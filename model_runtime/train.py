@@ -169,8 +169,9 @@ def losses(model, initial, future, mask, contacts, limits, config):
     With ``best_of_draws`` > 1 the best of that many prior samples answers for its squared error
     (``best_of_weight``; "best of many", which the evaluation's best of K scores): alone, the prior's
     samples hedge toward the mean, and given a foot's path their hips travelled 61 % as far as the
-    capture's, its draws 1.5x narrower than with nothing given. The realism terms score every draw:
-    on the first alone, best of 4 left the others' feet skating 4.4x as fast at k = 0."""
+    capture's, its draws 1.5x narrower than with nothing given. The realism terms score every draw;
+    a fine-tune with best of 4 left the k = 0 draws' feet skating 4.4x as fast all the same (0.347 m/s
+    against 0.078; 0.343 with realism on the first draw alone)."""
     decoded = model(initial, future, mask, config.best_of_draws)
     difference = decoded.reconstruction - future
     relative = body_relative(difference, config.body_relative_share, config.unknown_root_weight)
