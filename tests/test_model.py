@@ -10,7 +10,7 @@ import torch
 from model_runtime import augment, masks, metrics, realism, train, weights
 from model_runtime.data import dataset
 from model_runtime.model import ModelConfig, TrajeVAE, reconstruct, with_given_joints
-from model_runtime.skeleton import JOINT_INDEX
+from model_runtime.skeleton import FEET, JOINT_INDEX
 
 
 @pytest.fixture(scope="module")
@@ -220,6 +220,22 @@ def test_best_of_many_scores_the_nearest_of_a_windows_prior_draws(validation_win
     _, parts = train.losses(network, initial, future, mask, torch.zeros(8, 60, 2), limits,
                             train.TrainConfig(best_of_draws=4, best_of_weight=1.0))
     assert parts["best_of"] == pytest.approx(errors.amin(dim=1).mean().item(), rel=1e-5)
+
+
+def test_a_draws_planted_feet_are_found_against_the_window_or_its_own_lowest_ankle(validation_windows):
+    """A draw gliding 10 cm above the captured floor has no foot near the window's floor, but at its
+    own lowest ankle both feet count planted, as the evaluation's foot skating counts them."""
+    future = torch.from_numpy(validation_windows[:4, 1:])
+    lifted = future.clone()
+    lifted[..., 2] += 0.1
+    never = torch.full((4, 60, 2), -20.0)  # logits: the draw predicts no contact
+    ankles = lifted[..., [JOINT_INDEX[name] for name in FEET], 2]
+    lowest = ankles == ankles.amin(dim=1, keepdim=True)
+    assert train.prior_planted(lifted, never, future, "window").amax() < 0.01
+    own = train.prior_planted(lifted, never, future, "own")
+    assert torch.all(own[lowest] == 1.0) and own.mean() > 0.3
+    torch.testing.assert_close(train.prior_planted(future, never, future, "own"),
+                               train.prior_planted(future, never, future, "window"))
 
 
 def test_training_runs_checkpoints_resumes_and_its_second_stage_depends_only_on_the_first(tmp_path):
