@@ -71,8 +71,11 @@ def render(meta, evaluation=None, before=None, folder=weights.ASSETS):
     command = f"python -m model_runtime.train --data {paths}" + ("" if init is None else f" --init {init}") + _flags(train)
     count = train.get("best_of_draws", 1)
     draws = "one prior sample" if count == 1 else f"each of {count} prior samples"
+    relative = (f", {train['best_of_relative_share']} x the root's error taken off the other joints'"
+                if train.get("best_of_relative_share") else ", in absolute positions")
     best_of = ("" if not train.get("best_of_weight") else
-               f"; the one nearest the capture answers for its squared error ({train['best_of_weight']} x, best of many)")
+               f"; the one nearest the capture answers for its squared error ({train['best_of_weight']} x{relative}, best of many)")
+    floor = "their own lowest ankle" if train.get("prior_floor") == "own" else "the window's floor"
     facing = (" (the network sees each condition turned so its initial pose faces +Y, and turns its decodes back)"
               if config.get("facing_frame") else "")
     if meta.get("second_stage_from"):
@@ -138,8 +141,8 @@ GSPS realism on the reconstruction and, at {train['prior_realism_share']} x, on 
 whose squared error on the known coordinates also counts ({train['prior_known_weight']} x){best_of}:
 lengths of the rigid bones and torso segments ({train['bone_weight']}), joint-angle limits fitted on the
 training poses ({train['angle_weight']}),
-squared speed of planted feet ({train['skating_weight']}; on the prior sample, the feet it predicts planted
-and those within {FLOOR_CONTACT_M * 100:.0f} cm of the window's floor)
+squared speed of planted feet ({train['skating_weight']}; on the prior samples {train.get('prior_skating_weight', train['skating_weight'])}, the feet
+they predict planted and those within {FLOOR_CONTACT_M * 100:.0f} cm of {floor})
 and ankles below the window's floor ({train['floor_weight']}).
 Then the second stage: the completion stage alone ({config['completion_layers']} transformer layers) for
 {train['completion_steps']} steps (lr {train['completion_learning_rate']}, warm-up then one cosine decay), from the

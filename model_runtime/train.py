@@ -184,11 +184,9 @@ def losses(model, initial, future, mask, contacts, limits, config):
     cover travel the evaluation, relative to the root, does not score: with nothing given their hips
     went 0.84 m in 2 s against the capture's 0.47 and their feet skated 4.4x as fast (0.347 m/s against
     0.078, realism scored on every draw); with the root's error counted once (share 1), 0.51 m, and
-    best-of-10 validation error 0.6966 m against 0.7009 after 500 steps. Not at all (the root's row
-    weighed 0, with the draws' realism 2x and their skating 5x), the draws let their known coordinates
-    go (squared error 14 against 3; validation 0.714 m against 0.675 after 1000 steps). The draws'
-    skating: ``prior_skating_weight`` and ``prior_floor`` "own" (as the evaluation finds planted feet)
-    took it from 0.31 to 0.11 m/s in 600 steps."""
+    best-of-10 validation error 0.6966 m against 0.7009 after 500 steps. The draws' skating:
+    ``prior_skating_weight`` and ``prior_floor`` "own" (as the evaluation finds planted feet) took it
+    from 0.31 to 0.11 m/s in 600 steps."""
     decoded = model(initial, future, mask, config.best_of_draws)
     difference = decoded.reconstruction - future
     relative = body_relative(difference, config.body_relative_share, config.unknown_root_weight)
@@ -207,7 +205,7 @@ def losses(model, initial, future, mask, contacts, limits, config):
     flat = draws.flatten(0, 1)
     realism_prior = realism_terms(flat, each(initial), each(future),
                                   prior_planted(flat, decoded.prior_contacts.flatten(0, 1), each(future),
-                                                config.prior_floor), limits)
+                                                config.prior_floor, each(mask)), limits)
     total = (known + unknown + config.prior_known_weight * prior_known + config.beta * kl
              + config.best_of_weight * best_of
              + config.contact_weight * contact
@@ -221,19 +219,22 @@ def losses(model, initial, future, mask, contacts, limits, config):
     return total, parts
 
 
-def prior_planted(motion, logits, future, floor="window"):
+def prior_planted(motion, logits, future, floor="window", mask=None):
     """Planted-foot weights (B, T, 2) in [0, 1] of prior samples (B, T, J, 3) for their skating term: the
     feet they predict planted (``logits`` (B, T, 2)) and the feet low enough that the evaluation counts
     them planted (ankles within ``FLOOR_CONTACT_M`` of the floor, fully within half of it). The floor:
     the window's lowest captured ankle ("window") or, as the evaluation measures, each foot's own
-    lowest in the sample ("own"). With their own predictions alone, feet gliding along a ground path
-    and predicted in the air went free: prior samples learned to glide (ankles lifted 3.5 cm in
-    captured walks' 20)."""
+    lowest in the sample ("own"), where a foot whose horizontal position is known (``mask``
+    (B, T, J, 3)) is not held: it follows its given path. With their own predictions alone, feet
+    gliding along a ground path and predicted in the air went free: prior samples learned to glide
+    (ankles lifted 3.5 cm in captured walks' 20); holding given feet at 10x, draws let their known
+    coordinates go (squared error 10 against 3)."""
     ankles = motion[..., indices(FEET), 2].detach()
     lowest = future[:, :, indices(FEET), 2] if floor == "window" else ankles
     height = ankles - lowest.amin(dim=1, keepdim=True)
     low = ((FLOOR_CONTACT_M - height) / (0.5 * FLOOR_CONTACT_M)).clamp(0.0, 1.0)
-    return torch.maximum(torch.sigmoid(logits).detach(), low)
+    planted = torch.maximum(torch.sigmoid(logits).detach(), low)
+    return planted if floor == "window" else planted * (1 - mask[..., indices(FEET), :2].amax(-1))
 
 
 class CompletionStage(torch.nn.Module):

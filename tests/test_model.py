@@ -224,18 +224,23 @@ def test_best_of_many_scores_the_nearest_of_a_windows_prior_draws(validation_win
 
 def test_a_draws_planted_feet_are_found_against_the_window_or_its_own_lowest_ankle(validation_windows):
     """A draw gliding 10 cm above the captured floor has no foot near the window's floor, but at its
-    own lowest ankle both feet count planted, as the evaluation's foot skating counts them."""
+    own lowest ankle both feet count planted, as the evaluation's foot skating counts them, unless a
+    foot's path is given."""
     future = torch.from_numpy(validation_windows[:4, 1:])
     lifted = future.clone()
     lifted[..., 2] += 0.1
     never = torch.full((4, 60, 2), -20.0)  # logits: the draw predicts no contact
     ankles = lifted[..., [JOINT_INDEX[name] for name in FEET], 2]
     lowest = ankles == ankles.amin(dim=1, keepdim=True)
+    unknown = torch.zeros(4, 60, 17, 3)
     assert train.prior_planted(lifted, never, future, "window").amax() < 0.01
-    own = train.prior_planted(lifted, never, future, "own")
+    own = train.prior_planted(lifted, never, future, "own", unknown)
     assert torch.all(own[lowest] == 1.0) and own.mean() > 0.3
-    torch.testing.assert_close(train.prior_planted(future, never, future, "own"),
+    torch.testing.assert_close(train.prior_planted(future, never, future, "own", unknown),
                                train.prior_planted(future, never, future, "window"))
+    given_right = torch.from_numpy(np.broadcast_to(masks.evaluation_mask(1, 60), (4, 60, 17)).copy())
+    held = train.prior_planted(lifted, never, future, "own", masks.per_coordinate(given_right))
+    assert held[..., 0].amax() == 0.0 and torch.equal(held[..., 1], own[..., 1])  # a given foot follows its path
 
 
 def test_training_runs_checkpoints_resumes_and_its_second_stage_depends_only_on_the_first(tmp_path):
