@@ -82,7 +82,7 @@ class TrainConfig:
     prior_realism_share: float = 0.5  # weight of the realism terms on the prior sample
     prior_known_weight: float = 1.0  # the prior sample's squared error on the known coordinates
     prior_skating_weight: float = 1.0  # the prior samples' skating term, in place of skating_weight
-    prior_floor: str = "window"  # "window": a draw's planted feet are those near the window's lowest captured ankle; "own": near its own lowest (``prior_planted``)
+    prior_floor: str = "window"  # a draw's planted feet: near the window's lowest captured ankle, or "own" (``prior_planted``)
     best_of_draws: int = 1  # prior samples decoded per window, the best of which answers for its error (``losses``)
     best_of_weight: float = 0.0  # weight of that best draw's squared error
     best_of_relative_share: float = 0.0  # of the root's error taken from the other joints' in it (``body_relative``)
