@@ -205,7 +205,7 @@ def losses(model, initial, future, mask, contacts, limits, config):
     flat = draws.flatten(0, 1)
     realism_prior = realism_terms(flat, each(initial), each(future),
                                   prior_planted(flat, decoded.prior_contacts.flatten(0, 1), each(future),
-                                                config.prior_floor, each(mask)), limits)
+                                                each(mask), config.prior_floor), limits)
     total = (known + unknown + config.prior_known_weight * prior_known + config.beta * kl
              + config.best_of_weight * best_of
              + config.contact_weight * contact
@@ -219,7 +219,7 @@ def losses(model, initial, future, mask, contacts, limits, config):
     return total, parts
 
 
-def prior_planted(motion, logits, future, floor="window", mask=None):
+def prior_planted(motion, logits, future, mask, floor="window"):
     """Planted-foot weights (B, T, 2) in [0, 1] of prior samples (B, T, J, 3) for their skating term: the
     feet they predict planted (``logits`` (B, T, 2)) and the feet low enough that the evaluation counts
     them planted (ankles within ``FLOOR_CONTACT_M`` of the floor, fully within half of it). The floor:

@@ -233,13 +233,13 @@ def test_a_draws_planted_feet_are_found_against_the_window_or_its_own_lowest_ank
     ankles = lifted[..., [JOINT_INDEX[name] for name in FEET], 2]
     lowest = ankles == ankles.amin(dim=1, keepdim=True)
     unknown = torch.zeros(4, 60, 17, 3)
-    assert train.prior_planted(lifted, never, future, "window").amax() < 0.01
-    own = train.prior_planted(lifted, never, future, "own", unknown)
+    assert train.prior_planted(lifted, never, future, unknown, "window").amax() < 0.01
+    own = train.prior_planted(lifted, never, future, unknown, "own")
     assert torch.all(own[lowest] == 1.0) and own.mean() > 0.3
-    torch.testing.assert_close(train.prior_planted(future, never, future, "own", unknown),
-                               train.prior_planted(future, never, future, "window"))
+    torch.testing.assert_close(train.prior_planted(future, never, future, unknown, "own"),
+                               train.prior_planted(future, never, future, unknown, "window"))
     given_right = torch.from_numpy(np.broadcast_to(masks.evaluation_mask(1, 60), (4, 60, 17)).copy())
-    held = train.prior_planted(lifted, never, future, "own", masks.per_coordinate(given_right))
+    held = train.prior_planted(lifted, never, future, masks.per_coordinate(given_right), "own")
     assert held[..., 0].amax() == 0.0 and torch.equal(held[..., 1], own[..., 1])  # a given foot follows its path
 
 
