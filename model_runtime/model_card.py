@@ -75,7 +75,8 @@ def render(meta, evaluation=None, before=None, folder=weights.ASSETS):
                 if train.get("best_of_relative_share") else ", in absolute positions")
     best_of = ("" if not train.get("best_of_weight") else
                f"; the one nearest the capture answers for its squared error ({train['best_of_weight']} x{relative}, best of many)")
-    floor = "their own lowest ankle" if train.get("prior_floor") == "own" else "the window's floor"
+    floor = ("their own lowest ankle, those whose path is given left free" if train.get("prior_floor") == "own"
+             else "the window's floor")
     facing = (" (the network sees each condition turned so its initial pose faces +Y, and turns its decodes back)"
               if config.get("facing_frame") else "")
     if meta.get("second_stage_from"):

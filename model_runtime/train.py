@@ -230,11 +230,13 @@ def prior_planted(motion, logits, future, mask, floor="window"):
     (ankles lifted 3.5 cm in captured walks' 20); holding given feet at 10x, draws let their known
     coordinates go (squared error 10 against 3)."""
     ankles = motion[..., indices(FEET), 2].detach()
-    lowest = future[:, :, indices(FEET), 2] if floor == "window" else ankles
+    if floor == "window":
+        lowest, free = future[:, :, indices(FEET), 2], 1.0
+    else:
+        lowest, free = ankles, 1 - mask[..., indices(FEET), :2].amax(-1)
     height = ankles - lowest.amin(dim=1, keepdim=True)
     low = ((FLOOR_CONTACT_M - height) / (0.5 * FLOOR_CONTACT_M)).clamp(0.0, 1.0)
-    planted = torch.maximum(torch.sigmoid(logits).detach(), low)
-    return planted if floor == "window" else planted * (1 - mask[..., indices(FEET), :2].amax(-1))
+    return torch.maximum(torch.sigmoid(logits).detach(), low) * free
 
 
 class CompletionStage(torch.nn.Module):
