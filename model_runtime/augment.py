@@ -79,6 +79,15 @@ def stands_upright(motion):
     return motion[:, 0, 0, 2] >= 0.85 * _standing_hip_height(motion)
 
 
+def still_through_blend(motion, travel_m):
+    """Windows (B, 1 + T, 17, 3) whose ankles stay within ``travel_m`` (horizontally) of where they
+    stood over the longest rest-start blend: a rest start into a window that moves off at once
+    slides its feet while its bones turn (rest-started validation windows: planted-height feet
+    0.26 m/s over the first second, the capture's 0.14), and taught prior draws to glide from rest."""
+    ankles = motion[:, :REST_BLEND_FRAMES[1] + 1, indices(FEET), :2]
+    return np.linalg.norm(ankles - ankles[:, :1], axis=-1).max(axis=(1, 2)) < travel_m
+
+
 def _standing_hip_height(motion):
     """Hip height (B,) of the windows' skeletons standing with straight legs on their lowest ankle height."""
     initial = motion[:, 0]

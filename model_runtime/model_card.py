@@ -77,6 +77,8 @@ def render(meta, evaluation=None, before=None, folder=weights.ASSETS):
                f"; the one nearest the capture answers for its squared error ({train['best_of_weight']} x{relative}, best of many)")
     floor = ("their own lowest ankle, those whose path is given left free" if train.get("prior_floor") == "own"
              else "the window's floor")
+    still = ("" if train.get("rest_start_still_m", float("inf")) == float("inf") else
+             f" and whose ankles stay within {train['rest_start_still_m']} m through the blend")
     facing = (" (the network sees each condition turned so its initial pose faces +Y, and turns its decodes back)"
               if config.get("facing_frame") else "")
     if meta.get("second_stage_from"):
@@ -132,7 +134,7 @@ beta {train['beta']}, random turns about Z{facing} and mirroring, seed {train['s
 paper's Bernoulli trajectories (p = 0.85 masked), the evaluation order, sparse keys, end
 poses, partial curves, ground paths and waypoints, and {masks.CARRIED_SHARE:.0%} of them carry their first
 1-{masks.CARRIED_FRAMES} frames whole, as a long shot's later windows do. {train['rest_start_share']:.0%} of the windows whose first
-pose stands start from a rest pose of their own skeleton (T to A, arms 0-50 degrees down)
+pose stands{still} start from a rest pose of their own skeleton (T to A, arms 0-50 degrees down)
 and turn into the capture over 15-30 frames, as rigs start in the add-on. Losses: the
 paper's (squared error, KL; the error in absolute positions where a coordinate is known and, where
 it is not, with {train.get('body_relative_share', 0.0)} x the root's error taken off the other joints' and the root's own
@@ -143,7 +145,7 @@ whose squared error on the known coordinates also counts ({train['prior_known_we
 lengths of the rigid bones and torso segments ({train['bone_weight']}), joint-angle limits fitted on the
 training poses ({train['angle_weight']}),
 squared speed of planted feet ({train['skating_weight']}; on the prior samples {train.get('prior_skating_weight', train['skating_weight'])}, the feet
-they predict planted and those within {FLOOR_CONTACT_M * 100:.0f} cm of {floor})
+they predict planted and those within {train.get('prior_contact_m', FLOOR_CONTACT_M) * 100:.0f} cm of {floor})
 and ankles below the window's floor ({train['floor_weight']}).
 Then the second stage: the completion stage alone ({config['completion_layers']} transformer layers) for
 {train['completion_steps']} steps (lr {train['completion_learning_rate']}, warm-up then one cosine decay), from the

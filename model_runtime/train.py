@@ -83,12 +83,14 @@ class TrainConfig:
     prior_known_weight: float = 1.0  # the prior sample's squared error on the known coordinates
     prior_skating_weight: float = 1.0  # the prior samples' skating term, in place of skating_weight
     prior_floor: str = "window"  # a draw's planted feet: near the window's lowest captured ankle, or "own" (``prior_planted``)
+    prior_contact_m: float = FLOOR_CONTACT_M  # ... within this of it (fully within half of it)
     best_of_draws: int = 1  # prior samples decoded per window, the best of which answers for its error (``losses``)
     best_of_weight: float = 0.0  # weight of that best draw's squared error
     best_of_relative_share: float = 0.0  # of the root's error taken from the other joints' in it (``body_relative``)
     body_relative_share: float = 0.0  # of the root's error taken from unknown joints' (``body_relative``)
     unknown_root_weight: float = 1.0  # scales the root's own error where the root is unknown
     rest_start_share: float = 0.2  # windows whose initial pose is a rest pose (``augment.rest_start``)
+    rest_start_still_m: float = float("inf")  # ... among those whose feet stand still (``augment.still_through_blend``)
     mirror_probability: float = 0.5
     seed: int = 0
     validate_every: int = 500
@@ -125,6 +127,8 @@ def training_batch(sampler, config, frames, rng):
     of the frames after the initial one. Rest starts, mirroring (feet swapped) and turns about Z."""
     motion, soles = sampler.sample(config.batch, rng)
     rest = (rng.random(config.batch) < config.rest_start_share) & augment.stands_upright(motion)
+    if np.isfinite(config.rest_start_still_m):
+        rest &= augment.still_through_blend(motion, config.rest_start_still_m)
     if rest.any():
         motion[rest], soles[rest] = augment.rest_start(motion[rest], soles[rest], rng)
     flip = rng.random(config.batch) < config.mirror_probability
@@ -205,7 +209,7 @@ def losses(model, initial, future, mask, contacts, limits, config):
     flat = draws.flatten(0, 1)
     realism_prior = realism_terms(flat, each(initial), each(future),
                                   prior_planted(flat, decoded.prior_contacts.flatten(0, 1), each(future),
-                                                each(mask), config.prior_floor), limits)
+                                                each(mask), config.prior_floor, config.prior_contact_m), limits)
     total = (known + unknown + config.prior_known_weight * prior_known + config.beta * kl
              + config.best_of_weight * best_of
              + config.contact_weight * contact
@@ -219,10 +223,11 @@ def losses(model, initial, future, mask, contacts, limits, config):
     return total, parts
 
 
-def prior_planted(motion, logits, future, mask, floor="window"):
+def prior_planted(motion, logits, future, mask, floor="window", contact_m=FLOOR_CONTACT_M):
     """Planted-foot weights (B, T, 2) in [0, 1] of prior samples (B, T, J, 3) for their skating term: the
-    feet they predict planted (``logits`` (B, T, 2)) and the feet low enough that the evaluation counts
-    them planted (ankles within ``FLOOR_CONTACT_M`` of the floor, fully within half of it). The floor:
+    feet they predict planted (``logits`` (B, T, 2)) and the feet low enough to count as planted (ankles
+    within ``contact_m`` of the floor, fully within half of it: at FLOOR_CONTACT_M, as the evaluation
+    finds them; the add-on's cleanup holds feet up to 6 cm up, ``cleanup.STEP_LIFT_M``). The floor:
     the window's lowest captured ankle ("window") or, as the evaluation measures, each foot's own
     lowest in the sample ("own"), where a foot whose horizontal position is known (``mask``
     (B, T, J, 3)) is not held: it follows its given path. With their own predictions alone, feet
@@ -235,7 +240,7 @@ def prior_planted(motion, logits, future, mask, floor="window"):
     else:
         lowest, free = ankles, 1 - mask[..., indices(FEET), :2].amax(-1)
     height = ankles - lowest.amin(dim=1, keepdim=True)
-    low = ((FLOOR_CONTACT_M - height) / (0.5 * FLOOR_CONTACT_M)).clamp(0.0, 1.0)
+    low = ((contact_m - height) / (0.5 * contact_m)).clamp(0.0, 1.0)
     return torch.maximum(torch.sigmoid(logits).detach(), low) * free
 
 

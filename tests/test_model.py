@@ -225,7 +225,8 @@ def test_best_of_many_scores_the_nearest_of_a_windows_prior_draws(validation_win
 def test_a_draws_planted_feet_are_found_against_the_window_or_its_own_lowest_ankle(validation_windows):
     """A draw gliding 10 cm above the captured floor has no foot near the window's floor, but at its
     own lowest ankle both feet count planted, as the evaluation's foot skating counts them, unless a
-    foot's path is given."""
+    foot's path is given. Within a band of 8 cm (``contact_m``; FLOOR_CONTACT_M is 5), a foot hovering 5 cm up,
+    which the add-on's cleanup holds, counts three quarters planted."""
     future = torch.from_numpy(validation_windows[:4, 1:])
     lifted = future.clone()
     lifted[..., 2] += 0.1
@@ -241,6 +242,13 @@ def test_a_draws_planted_feet_are_found_against_the_window_or_its_own_lowest_ank
     given_right = torch.from_numpy(np.broadcast_to(masks.evaluation_mask(1, 60), (4, 60, 17)).copy())
     held = train.prior_planted(lifted, never, future, masks.per_coordinate(given_right), "own")
     assert held[..., 0].amax() == 0.0 and torch.equal(held[..., 1], own[..., 1])  # a given foot follows its path
+    hovering = future.clone()
+    hovering[..., 2] += 0.05  # at FLOOR_CONTACT_M: over the cleanup's 4 cm, under its 6 cm shuffle
+    floor_ankles = future[..., [JOINT_INDEX[name] for name in FEET], 2]
+    on_floor = floor_ankles == floor_ankles.amin(dim=1, keepdim=True)
+    assert train.prior_planted(hovering, never, future, unknown, "window").amax() < 0.01
+    wide = train.prior_planted(hovering, never, future, unknown, "window", contact_m=0.08)
+    torch.testing.assert_close(wide[on_floor], torch.full_like(wide[on_floor], 0.75))
 
 
 def test_training_runs_checkpoints_resumes_and_its_second_stage_depends_only_on_the_first(tmp_path):

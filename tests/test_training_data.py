@@ -61,3 +61,26 @@ def test_rest_starts_leave_an_upright_rest_pose_into_the_capture(all_clips):
     np.testing.assert_allclose(moved - soles, started[..., feet, 2] - motion[..., feet, 2], atol=1e-5)
     # eased in: no joint faster than 6 m/s (a fast punch) on the way
     assert np.linalg.norm(np.diff(started[:, :31], axis=1), axis=-1).max() < 0.2
+
+
+def test_rest_starts_into_windows_still_through_the_blend_slide_their_feet_less(walks, all_clips):
+    """A rest start into a walk turns its legs while the body walks off: its low feet slide. The windows
+    ``still_through_blend`` keeps have feet that stay put over the blend, so rest-started they slide
+    less than half as fast as the walks do."""
+    rng = np.random.default_rng(0)
+    walking = WindowSampler(walks, 60).sample(64, rng)
+    mixed = WindowSampler(all_clips[:40], 60).sample(256, rng)
+    feet = skeleton.indices(skeleton.FEET)
+
+    def blend_speed(windows):
+        started, _ = augment.rest_start(*windows, np.random.default_rng(1))
+        ankles = started[:, :31, feet, :2]
+        return np.linalg.norm(np.diff(ankles, axis=1), axis=-1).mean() * clips.NATIVE_FPS
+
+    assert not augment.still_through_blend(walking[0], 0.1).any()
+    still = augment.still_through_blend(mixed[0], 0.1) & augment.stands_upright(mixed[0])
+    assert 10 <= still.sum() < len(still)
+    ankles = mixed[0][still][:, :31, feet, :2]
+    assert np.linalg.norm(ankles - ankles[:, :1], axis=-1).max() < 0.1
+    walking_speed, still_speed = blend_speed(walking), blend_speed(tuple(part[still] for part in mixed))
+    assert still_speed < 0.5 * walking_speed
