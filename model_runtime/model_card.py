@@ -77,8 +77,8 @@ def render(meta, evaluation=None, before=None, folder=weights.ASSETS):
                f"; the one nearest the capture answers for its squared error ({train['best_of_weight']} x{relative}, best of many)")
     floor = ("their own lowest ankle, those whose path is given left free" if train.get("prior_floor") == "own"
              else "the window's floor")
-    still = ("" if train.get("rest_start_still_m", float("inf")) == float("inf") else
-             f" and whose ankles stay within {train['rest_start_still_m']} m through the blend")
+    still = (f" and whose ankles stay within {train['rest_start_still_m']} m through the blend"
+             if train.get("rest_start_still_m") else "")
     facing = (" (the network sees each condition turned so its initial pose faces +Y, and turns its decodes back)"
               if config.get("facing_frame") else "")
     if meta.get("second_stage_from"):

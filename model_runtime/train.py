@@ -90,7 +90,7 @@ class TrainConfig:
     body_relative_share: float = 0.0  # of the root's error taken from unknown joints' (``body_relative``)
     unknown_root_weight: float = 1.0  # scales the root's own error where the root is unknown
     rest_start_share: float = 0.2  # windows whose initial pose is a rest pose (``augment.rest_start``)
-    rest_start_still_m: float = float("inf")  # ... among those whose feet stand still (``augment.still_through_blend``)
+    rest_start_still_m: float = 0.0  # ... among those whose feet stand still (``augment.still_through_blend``; 0: any)
     mirror_probability: float = 0.5
     seed: int = 0
     validate_every: int = 500
@@ -127,7 +127,7 @@ def training_batch(sampler, config, frames, rng):
     of the frames after the initial one. Rest starts, mirroring (feet swapped) and turns about Z."""
     motion, soles = sampler.sample(config.batch, rng)
     rest = (rng.random(config.batch) < config.rest_start_share) & augment.stands_upright(motion)
-    if np.isfinite(config.rest_start_still_m):
+    if config.rest_start_still_m:
         rest &= augment.still_through_blend(motion, config.rest_start_still_m)
     if rest.any():
         motion[rest], soles[rest] = augment.rest_start(motion[rest], soles[rest], rng)
