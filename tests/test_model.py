@@ -225,7 +225,7 @@ def test_best_of_many_scores_the_nearest_of_a_windows_prior_draws(validation_win
 def test_a_draws_planted_feet_are_found_against_the_window_or_its_own_lowest_ankle(validation_windows):
     """A draw gliding 10 cm above the captured floor has no foot near the window's floor, but at its
     own lowest ankle both feet count planted, as the evaluation's foot skating counts them, unless a
-    foot's path is given. Within a band of 8 cm (``contact_m``; FLOOR_CONTACT_M is 5), a foot hovering 5 cm up,
+    foot's path is given. Within a band of 8 cm (``contact_m``; FLOOR_CONTACT_M is 5 cm), a foot hovering 5 cm up,
     which the add-on's cleanup holds, counts three quarters planted."""
     future = torch.from_numpy(validation_windows[:4, 1:])
     lifted = future.clone()
