@@ -151,7 +151,8 @@ Then the second stage: the completion stage alone ({config['completion_layers']}
 {train['completion_steps']} steps (lr {train['completion_learning_rate']}, warm-up then one cosine decay), from the
 first stage's best validated weights, on their frozen decodes of posterior samples and, for
 {train['completion_mean_share']:.0%} of each batch, of the prior mean (squared error of the root and of the
-body relative to it, plus the realism terms, the joint-angle limits at
+body relative to it, plus the realism terms, the bone lengths at
+{train.get('completion_bone_weight', train['bone_weight'])} and the joint-angle limits at
 {train.get('completion_angle_weight', train['angle_weight'])}), and of one prior draw per window, which answers
 for its squared displacement ({train.get('completion_draw_weight', 0.0)} x), that displacement's squared
 frame-to-frame acceleration ({train.get('completion_draw_smoothness', 0.0)} x) and the realism terms but foot sliding

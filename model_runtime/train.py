@@ -79,6 +79,7 @@ class TrainConfig:
     floor_weight: float = 100.0  # squared depth of an ankle below the window's lowest, summed over frames
     angle_weight: float = 2.0  # GSPS: squared cosine outside the joint-angle limits, summed over frames
     completion_angle_weight: float = 10.0  # the same in the second stage (``completion_losses``)
+    completion_bone_weight: float = 1.0  # the bone and torso lengths in the second stage
     prior_realism_share: float = 0.5  # weight of the realism terms on the prior sample
     prior_known_weight: float = 1.0  # the prior sample's squared error on the known coordinates
     prior_skating_weight: float = 1.0  # the prior samples' skating term, in place of skating_weight
@@ -167,8 +168,8 @@ def body_lengths(poses):
     return torch.cat([rigid_bone_lengths(poses), ((second - first) ** 2).sum(-1) ** 0.5], dim=-1)
 
 
-def weighted_realism(terms, config, angle_weight, skating_weight):
-    return (config.bone_weight * terms["bones"] + angle_weight * terms["angles"]
+def weighted_realism(terms, config, bone_weight, angle_weight, skating_weight):
+    return (bone_weight * terms["bones"] + angle_weight * terms["angles"]
             + skating_weight * terms["skating"] + config.floor_weight * terms["floor"])
 
 
@@ -213,9 +214,9 @@ def losses(model, initial, future, mask, contacts, limits, config):
     total = (known + unknown + config.prior_known_weight * prior_known + config.beta * kl
              + config.best_of_weight * best_of
              + config.contact_weight * contact
-             + weighted_realism(realism_now, config, config.angle_weight, config.skating_weight)
-             + config.prior_realism_share * weighted_realism(realism_prior, config, config.angle_weight,
-                                                             config.prior_skating_weight))
+             + weighted_realism(realism_now, config, config.bone_weight, config.angle_weight, config.skating_weight)
+             + config.prior_realism_share * weighted_realism(realism_prior, config, config.bone_weight,
+                                                             config.angle_weight, config.prior_skating_weight))
     parts = {"known": known.item(), "prior_known": prior_known.item(), "unknown": unknown.item(), "kl": kl.item(),
              "best_of": best_of.item(), "contact": contact.item()}
     parts.update({name: value.item() for name, value in realism_now.items()})
@@ -277,7 +278,14 @@ def completion_losses(model, completion, initial, future, mask, contacts, limits
     half a metre off their feet. The joint-angle limits weigh ``completion_angle_weight`` here, 5x the
     first stage's: the facing-frame weights' frames off the limits at k = 0 / 1 went from 3.1x / 5.8x
     the capture's to 2.7x / 3.7x for 0.6-2.1 % more best-of-50 error (an earlier model's bones
-    stretched 30 % more at 5x).
+    stretched 30 % more at 5x). Stronger limits need stronger bones (``completion_bone_weight``):
+    at 40 and 8 they met 2.2x / 2.8x with bones 0.014 / 0.020 m (0.016 / 0.021) for 0.3-0.8 % more
+    error, but fitted draws further (squared displacement 2.8), and as played idle bodies leaned
+    further (the worst of five 18 / 20 degrees against 13 / 15, mannequin / Rigify, seeds 0-9);
+    with the displacement's smoothness at 400 as well the draws kept more of their spread (a reach's
+    variants 0.165 / 0.198 m apart against 0.144 / 0.163) but an idle body stood 3.9 cm off its
+    soles and the variants' joints next to curves sat further from the decoded ones (bones 1.12x
+    plain draws', 0.97x at 10 and 1).
     """
     given = future * masks.per_coordinate(mask)
     model.eval()
@@ -295,11 +303,12 @@ def completion_losses(model, completion, initial, future, mask, contacts, limits
     moved = completed_draw - drawn
     displacement = (moved ** 2).flatten(1).sum(-1).mean()
     jerk = ((moved[:, 2:] - 2 * moved[:, 1:-1] + moved[:, :-2]) ** 2).flatten(1).sum(-1).mean()
+    completion_weights = config.completion_bone_weight, config.completion_angle_weight, config.skating_weight
     terms = realism_terms(completed_fit, initial, future, contacts, limits)
     draw_terms = realism_terms(completed_draw, initial, future, torch.zeros_like(contacts), limits)  # no feet held
     total = (error + config.completion_draw_weight * displacement + config.completion_draw_smoothness * jerk
-             + weighted_realism(terms, config, config.completion_angle_weight, config.skating_weight)
-             + weighted_realism(draw_terms, config, config.completion_angle_weight, config.skating_weight))
+             + weighted_realism(terms, config, *completion_weights)
+             + weighted_realism(draw_terms, config, *completion_weights))
     parts = {"completion": error.item(), "displacement": displacement.item(), "jerk": jerk.item()}
     parts.update({name: value.item() for name, value in terms.items()})
     parts.update({"draw_" + name: value.item() for name, value in draw_terms.items() if name != "skating"})

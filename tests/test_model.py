@@ -222,6 +222,25 @@ def test_best_of_many_scores_the_nearest_of_a_windows_prior_draws(validation_win
     assert parts["best_of"] == pytest.approx(errors.amin(dim=1).mean().item(), rel=1e-5)
 
 
+def test_the_completion_stage_weighs_bones_by_its_own_weight(validation_windows):
+    """The second stage's bone term is ``completion_bone_weight`` x the fitted and the drawn
+    completions' bone deviations, whatever the first stage's ``bone_weight``."""
+    model = weights.load_model()[0]  # its own: the second stage's loss leaves the model in training mode
+    windows = torch.from_numpy(validation_windows[:8])
+    mask = torch.from_numpy(np.broadcast_to(masks.evaluation_mask(1, 60), (8, 60, 17)).copy())
+    limits = realism.load_angle_limits()
+
+    def completion_loss(**weights):
+        torch.manual_seed(0)
+        return train.completion_losses(model, train.CompletionStage(model), windows[:, 0], windows[:, 1:], mask,
+                                       torch.zeros(8, 60, 2), limits, train.TrainConfig(**weights))
+
+    unweighted, parts = completion_loss(completion_bone_weight=0.0, bone_weight=5.0)
+    weighted, _ = completion_loss(completion_bone_weight=3.0, bone_weight=1.0)
+    assert parts["bones"] > 0 and parts["draw_bones"] > 0
+    assert weighted.item() - unweighted.item() == pytest.approx(3.0 * (parts["bones"] + parts["draw_bones"]), rel=1e-3)
+
+
 def test_a_draws_planted_feet_are_found_against_the_window_or_its_own_lowest_ankle(validation_windows):
     """A draw gliding 10 cm above the captured floor has no foot near the window's floor, but at its
     own lowest ankle both feet count planted, as the evaluation's foot skating counts them, unless a
