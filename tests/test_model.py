@@ -230,10 +230,10 @@ def test_the_completion_stage_weighs_bones_by_its_own_weight(validation_windows)
     mask = torch.from_numpy(np.broadcast_to(masks.evaluation_mask(1, 60), (8, 60, 17)).copy())
     limits = realism.load_angle_limits()
 
-    def completion_loss(**weights):
+    def completion_loss(**loss_weights):
         torch.manual_seed(0)
         return train.completion_losses(model, train.CompletionStage(model), windows[:, 0], windows[:, 1:], mask,
-                                       torch.zeros(8, 60, 2), limits, train.TrainConfig(**weights))
+                                       torch.zeros(8, 60, 2), limits, train.TrainConfig(**loss_weights))
 
     unweighted, parts = completion_loss(completion_bone_weight=0.0, bone_weight=5.0)
     weighted, _ = completion_loss(completion_bone_weight=3.0, bone_weight=1.0)
