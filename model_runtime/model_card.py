@@ -43,7 +43,8 @@ bone-length deviation from the initial pose (m), angle_out = share of frames out
 the joint-angle limits fitted on the training poses, skating = mean horizontal foot
 speed while the foot is within 5 cm of the floor (m/s). "trajevae" samples the prior:
 with trajectories given, the {selection.GIVEN_POOL_FACTOR}K draws' most plausible half (least
-bone stretch, straying from the trajectories and joint angles outside the limits). "trajevae_posterior" decodes
+straying from the trajectories and, with the given joints pinned as the rig plays them, least bone
+stretch and joint angles outside the limits). "trajevae_posterior" decodes
 the posterior's mean, which sees the future: an oracle, what the latents carry at all. "sampler" is what the add-on ships: the
 diverse Gumbel-softmax sampler over the frozen model ({weights.SAMPLER_FILE}), its K variants
 picked from a pool of {selection.POOL_FACTOR}K sampler draws and {selection.PRIOR_POOL_FACTOR}K prior draws (the least

@@ -78,8 +78,8 @@ class TrainConfig:
     skating_weight: float = 1.0  # squared horizontal speed (m/s) of planted feet, summed over frames and feet
     floor_weight: float = 100.0  # squared depth of an ankle below the window's lowest, summed over frames
     angle_weight: float = 2.0  # GSPS: squared cosine outside the joint-angle limits, summed over frames
-    completion_angle_weight: float = 10.0  # the same in the second stage (``completion_losses``)
-    completion_bone_weight: float = 1.0  # the bone and torso lengths in the second stage
+    completion_angle_weight: float = 20.0  # the same in the second stage (``completion_losses``)
+    completion_bone_weight: float = 4.0  # the bone and torso lengths in the second stage
     prior_realism_share: float = 0.5  # weight of the realism terms on the prior sample
     prior_known_weight: float = 1.0  # the prior sample's squared error on the known coordinates
     prior_skating_weight: float = 1.0  # the prior samples' skating term, in place of skating_weight
@@ -275,17 +275,15 @@ def completion_losses(model, completion, initial, future, mask, contacts, limits
     holding the draws' feet as well froze the shifts of weight and shuffles the variants differ by
     (a standing shot's five variants 0.10 m apart, against 0.15 without), and the product's foot
     lock holds planted feet anyway. Draws alone, without the capture's future, left bodies leaning
-    half a metre off their feet. The joint-angle limits weigh ``completion_angle_weight`` here, 5x the
-    first stage's: the facing-frame weights' frames off the limits at k = 0 / 1 went from 3.1x / 5.8x
-    the capture's to 2.7x / 3.7x for 0.6-2.1 % more best-of-50 error (an earlier model's bones
-    stretched 30 % more at 5x). Stronger limits need stronger bones (``completion_bone_weight``):
-    at 40 and 8 they met 2.2x / 2.8x with bones 0.014 / 0.020 m (0.016 / 0.021) for 0.3-0.8 % more
-    error, but fitted draws further (squared displacement 2.8), and as played idle bodies leaned
-    further (the worst of five 18 / 20 degrees against 13 / 15, mannequin / Rigify, seeds 0-9);
-    with the displacement's smoothness at 400 as well the draws kept more of their spread (a reach's
-    variants 0.165 / 0.198 m apart against 0.144 / 0.163) but an idle body stood 3.9 cm off its
-    soles and the variants' joints next to curves sat further from the decoded ones (bones 1.12x
-    plain draws', 0.97x at 10 and 1).
+    half a metre off their feet. The joint-angle limits weigh ``completion_angle_weight`` here, 10x the
+    first stage's, and the bones ``completion_bone_weight``, 4x. At 10 and 1 the facing-frame weights'
+    frames off the limits at k = 0 / 1 were 2.7x / 3.7x the capture's (3.1x / 5.8x at 2 and 1), bones
+    0.0158 / 0.0212 m; at 20 and 4, 2.4x / 3.1x and 0.0145 / 0.0201 m, best-of-50 error 0.2 % more at
+    k = 0 / 1 and less at k = 3 / 4 (evaluated as the add-on screens draws, ``selection``). At 40 the
+    limits stretched the bones unless they weighed 8 or more, and then the stage fitted draws further
+    (squared displacement 2.8 against 1.9 at 20 and 4): standing variants with both feet and a hand
+    given stretched their shins 2 cm (their bones 1.22x plain draws', 1.10x at 20 and 4, 0.98x at 10
+    and 1), and as played idle bodies leaned 5 degrees further.
     """
     given = future * masks.per_coordinate(mask)
     model.eval()

@@ -130,3 +130,23 @@ def test_a_continuation_keeps_its_hand_within_reach_and_stays_apart_from_the_oth
     beyond = draws.copy()
     beyond[0] += np.array([2.0, 3.0, 1.5])[:, None, None, None] * np.array([1.0, 0.0, 0.0])  # none in reach
     assert selection.continuations_apart(beyond, initial, given, known, new_from=10)[0] == 2
+
+
+def test_bones_are_scored_as_the_rig_plays_them_with_the_given_joints_pinned(pool):
+    """Two candidates miss a given right-foot path by the same 3 cm: one whole body that reaches for
+    it short (pinned, its shin stretches 3 cm), one whose body stands 3 cm further along with only its
+    decoded foot left behind (pinned, every bone keeps its length). The rig pins the foot, so the
+    second is the plausible one, though as decoded its own shin is the stretched one."""
+    candidates, initial = pool
+    motion = candidates[4]
+    knee, foot = JOINT_INDEX["RKnee"], JOINT_INDEX["RFoot"]
+    shin = motion[:, foot] - motion[:, knee]
+    step = 0.03 * shin / np.linalg.norm(shin, axis=-1, keepdims=True)  # (T, 3)
+    given, known = np.zeros_like(motion), np.zeros(motion.shape[:2])
+    given[:, foot], known[:, foot] = motion[:, foot] + step, 1.0
+    short = motion.copy()
+    along = motion + step[:, None]
+    along[:, foot] = motion[:, foot]
+    with_both = np.concatenate([candidates, short[None], along[None]])
+    cost = selection.implausibility(with_both, initial, given, known)
+    assert cost[-1] < cost[-2]
