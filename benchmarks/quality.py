@@ -1,7 +1,8 @@
 """Benchmark: is the generated motion usable, as an animator sees it? (issue 15)
 
 On the mannequin and a generated Rigify rig (scene at 30 fps, 5 variants per
-shot) it generates seven shots: idle from the rest pose, a hand reach, blocking
+shot) it generates nine shots: idle from the rest pose, a hand reach, a foot's
+step (the right foot drawn 0.6 of its leg forward over 60 frames), blocking
 keys (rest pose at frame 1, a crouch with both arms up at 45), 300 frames
 of a slow hand wave, and walks along paths on the floor bound to the hips
 (4 m gently curved over 120 frames, a quarter circle of radius 2.5 m over
@@ -12,7 +13,7 @@ measured the same way. Prints one table per rig and writes contact sheets
 (see contact_sheet.py): out/quality_<rig>_<shot>.png and out/quality_capture.png, and the
 README's picture of a walk, docs/walk.png (footprints from the top, a stride from the side).
 With ``--seeds N`` it prints instead the spread and the curve's worst frame of the shots with a
-hand curve over seeds 0..N-1.
+hand or foot curve over seeds 0..N-1.
 """
 
 import csv
@@ -189,7 +190,7 @@ def table(title, rows):
 
 def over_seeds(count):
     """``--seeds N``: the spread and the bound joint's worst frame off its curve of the shots with a
-    hand curve, over seeds 0..N-1 on each rig: a seed's figures move a little with every change."""
+    hand or foot curve, over seeds 0..N-1 on each rig: a seed's figures move a little with every change."""
     for name, build in (("mannequin", blender_rigs.mannequin_rig), ("rigify", blender_rigs.rigify_rig)):
         scene = blender_rigs.fresh_scene()
         scene.render.fps, scene.render.fps_base = FPS, 1.0

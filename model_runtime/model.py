@@ -48,7 +48,7 @@ import torch
 from torch import nn
 
 from .dct import dct_matrix
-from .masks import body_steps, per_coordinate
+from .masks import body_steps, following_given_feet, per_coordinate
 from .skeleton import NUM_JOINTS, facing_turns, turned, turned_about_root
 
 DECODE_CHUNK = 128  # sequences decoded at once
@@ -269,12 +269,14 @@ class TrajeVAE(nn.Module):
     def complete(self, motion, initial, trajectories, mask, keep_given=True):
         """Decoded samples (B, count, T, J, 3) through the completion stage, for conditions (B, ...).
 
-        The stage sees each sample with its known joints pinned to their given positions (as
-        ``with_given_joints``), with the initial pose and the mask, and displaces the unknown
-        joints. ``keep_given`` returns known joints as given, else as decoded (their own close fit).
-        Sequences go in chunks (``_in_chunks``), as in ``decode``.
+        The stage sees each sample moved with its given feet (``masks.following_given_feet``) and
+        its known joints pinned to their given positions (as ``with_given_joints``), with the initial
+        pose and the mask, and displaces the unknown joints. ``keep_given`` returns known joints as
+        given, else as decoded and moved (their own close fit). Sequences go in chunks
+        (``_in_chunks``), as in ``decode``.
         """
         mask = per_coordinate(mask)
+        motion = following_given_feet(motion, trajectories, mask)
         turns = self.turns(initial)
         pinned = with_given_joints(motion, trajectories, mask)
         seen, initial = turned(pinned, turns), turned(initial, turns)

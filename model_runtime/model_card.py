@@ -109,8 +109,9 @@ training masks vary over time as well as joints (keys, end poses, partial curves
 paths and waypoints of the hips), and the decoder also sees, uncompressed, the known
 coordinates relative to the initial pose and their per-frame steps, so given curves are
 followed closely; where the hips' horizontal path is given, its step is every other joint's
-horizontal base step too, so the body travels with its hips. Samples keep the known
-coordinates exactly as given (pose completion;
+horizontal base step too, so the body travels with its hips; where feet are given (and the
+hips are not), each decode goes along the ground with them, every joint by their mean offset
+from the decoded feet. Samples keep the known coordinates exactly as given (pose completion;
 every baseline below does the same), and a completion stage, trained after the rest,
 moves the other joints to fit what is given (absolute displacements from the decoded
 motion with the given joints pinned).

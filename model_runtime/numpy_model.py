@@ -16,7 +16,7 @@ import numpy as np
 
 from . import joint_angles, selection
 from .dct import dct_matrix
-from .masks import body_steps, per_coordinate
+from .masks import body_steps, following_given_feet, per_coordinate
 from .skeleton import NUM_JOINTS, facing_turns, turned, turned_about_root
 
 REINSTALL = "reinstall the TrajeVAE extension"
@@ -236,6 +236,7 @@ class NumpyTrajeVAE:
         """Decoded motions (B, count, T, 17, 3) through the completion stage, as ``model.TrajeVAE.complete``."""
         w = self.weights
         mask = per_coordinate(mask)
+        motion = following_given_feet(motion, trajectories, mask)
         turns = self.turns(initial)
         pinned = _with_given_joints(motion, trajectories, mask)
         seen, initial = turned(pinned, turns), turned(initial, turns)

@@ -294,7 +294,7 @@ def completion_losses(model, completion, initial, future, mask, contacts, limits
         if means:
             fitted[:means] = model.sample(initial[:means], given[:means], mask[:means], 1, use_mean=True,
                                           decoded_only=True)[:, 0]
-        drawn = with_given_joints(decoded.prior_motions, given, mask)[:, 0]
+        drawn = with_given_joints(masks.following_given_feet(decoded.prior_motions, given, mask), given, mask)[:, 0]
     model.train()
     completed_fit, completed_draw = completion(torch.stack([fitted, drawn], dim=1), initial, given, mask).unbind(1)
     error = root_and_body_error(completed_fit, future).mean()

@@ -1,5 +1,5 @@
 """The shots an animator would try first, set up on any mapped rig: idle from the rest pose, a hand
-reach, blocking keys, a slow hand wave, and walks along paths drawn on the floor. Shared by the
+reach, a foot's step, blocking keys, a slow hand wave, and walks along paths drawn on the floor. Shared by the
 quality benchmark and the tests.
 
 Each shot function takes the rig and returns ({joint: curve points (P, 3) world}, key frame or
@@ -58,6 +58,16 @@ def wave(rig):
     radius = np.linalg.norm(wrist - shoulder) * (1.0 - rise) + REACH_SHARE * length * rise
     return {HAND: np.array([shoulder + r * np.array(Matrix.Rotation(angle, 3, axis) @ start)
                             for r, angle in zip(radius, angles)])}, None
+
+
+def step(rig):
+    """One foot curve: the right foot steps forward 0.6 of its leg's length along the rig's facing,
+    lifting to 0.15 of it halfway; the rest of the body is the model's (it has to follow the foot)."""
+    joints = blender_rigs.world_joints(rig)
+    hip, knee, foot = (joints[J["R" + part]] for part in ("Hip", "Knee", "Foot"))
+    leg = np.linalg.norm(knee - hip) + np.linalg.norm(foot - knee)
+    share = np.linspace(0.0, 1.0, 16)[:, None]
+    return {"RFoot": foot + share * 0.6 * leg * facing(joints) + np.sin(np.pi * share) * 0.15 * leg * UP}, None
 
 
 def _unit(vector):
@@ -161,5 +171,5 @@ def run(rig):
     return {"Hip": _ground_path(rig, 10.0, 15.0)}, None
 
 
-SHOTS = (("idle", 150, idle), ("reach", 90, reach), ("keys", 60, blocking), ("wave", 300, wave))
+SHOTS = (("idle", 150, idle), ("reach", 90, reach), ("step", 60, step), ("keys", 60, blocking), ("wave", 300, wave))
 WALKS = (("walk", 120, walk), ("quarter turn", 120, quarter_turn), ("long walk", 300, long_walk), ("run", 120, run))
