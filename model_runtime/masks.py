@@ -42,14 +42,12 @@ def body_steps(steps, mask):
     return steps + steps[..., ROOT:ROOT + 1, :] * horizontal * (1.0 - mask)
 
 
-
 def following_given_feet(motion, trajectories, mask):
     """Decoded motions (B, count, T, J, 3), numpy or torch, moved along the ground, every joint
     together, by their feet's mean horizontal offset from the given feet (trajectories (B, T, J, 3),
     mask (B, T, J, 3) or (B, T, J)) on the frames where a foot is given: a body goes where its given
-    feet go.
-    Where the hips' horizontal position is given (a ground path, a walk's planned steps) the body
-    already goes with them (``body_steps``) and is not moved.
+    feet go. Where the hips' horizontal position is given (a ground path, a walk's planned steps)
+    the body already goes with them (``body_steps``) and is not moved.
 
     Between those frames the move is linear, from none at the initial pose and held after the
     last (``_between_given_frames``). The decoder's own fit of a given foot strays from its path
