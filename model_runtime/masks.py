@@ -83,11 +83,15 @@ def _between_given_frames(given):
     weights = np.zeros((batch, frames, frames), np.float32)
     times = np.arange(frames)
     for row, flags in zip(weights, given):
-        known = np.flatnonzero(flags)
-        if not len(known):
+        anchors = np.concatenate([[-1], np.flatnonzero(flags)])  # -1: the initial pose, where nothing moves
+        if len(anchors) == 1:
             continue
-        anchors = np.concatenate([[-1], known])
-        row[:, known] = np.stack([np.interp(times, anchors, basis) for basis in np.eye(len(anchors))[1:]], axis=-1)
+        after = np.minimum(np.searchsorted(anchors, times), len(anchors) - 1)  # the first at or after, else the last
+        start, end = anchors[after - 1], anchors[after]
+        share = np.minimum((times - start) / (end - start), 1.0)
+        row[times, end] = share
+        real = start >= 0
+        row[times[real], start[real]] += 1.0 - share[real]
     return weights
 
 
