@@ -31,15 +31,53 @@ def per_coordinate(mask):
     return mask[..., None].expand(*mask.shape, 3)
 
 
-def body_steps(steps, mask):
-    """The decoder's base step of every joint coordinate (B, T, J, 3), numpy or torch: the given
-    steps (zero where not given) with the root's given horizontal step added to the unknown
-    horizontal coordinates (mask (B, T, J, 3)), so a body given a ground path travels with it."""
+def body_steps(steps, mask, feet_lead=False):
+    """The decoder's base step of every joint coordinate (B, T, J, 3), numpy or torch, from the given
+    steps (B, T, J, 3) (zero where not given) and the mask (B, T, J, 3): a given joint's own step;
+    for the unknown horizontal coordinates, the root's given step (a body given a ground path
+    travels with it) and, with ``feet_lead`` (``ModelConfig.feet_lead``), on frames where the
+    root's is not given, the steps of the given feet's mean position averaged over about a gait
+    cycle (``_spread_over_gait``): a walk's feet alternate between planted and swinging at twice
+    the body's speed, and the body moves on between them."""
     if isinstance(mask, np.ndarray):
         horizontal = np.array([1.0, 1.0, 0.0], dtype=mask.dtype)
     else:
         horizontal = mask.new_tensor([1.0, 1.0, 0.0])
-    return steps + steps[..., ROOT:ROOT + 1, :] * horizontal * (1.0 - mask)
+    base = steps[..., ROOT, :]
+    if feet_lead:
+        base = base + _feet_lead(steps, mask)
+    return steps + base[..., None, :] * horizontal * (1.0 - mask)
+
+
+def _feet_lead(steps, mask):
+    """``body_steps``' share from the given feet: (B, T, 3), zero where the root's horizontal
+    position is given."""
+    feet = indices(FEET)
+    given = mask if isinstance(mask, np.ndarray) else mask.detach().cpu().numpy()
+    before = np.concatenate([np.ones_like(given[:, :1]), given[:, :-1]], axis=1)
+    counted = (given[:, :, feet, 0] * before[:, :, feet, 0]).sum(-1, keepdims=True)  # (B, T, 1) feet with a step
+    spread = _spread_over_gait(given.shape[1]) / np.maximum(counted, 1.0).transpose(0, 2, 1)  # (B, T, T)
+    free = 1.0 - given[:, :, ROOT, :1]  # (B, T, 1)
+    if not isinstance(mask, np.ndarray):
+        spread, free = mask.new_tensor(spread), mask.new_tensor(free)
+    return (spread @ steps[..., feet, :].sum(-2)) * free
+
+
+GAIT_SPREAD_FRAMES = 15  # each side: a gait cycle takes about 1 s at 30 fps
+
+
+def _spread_over_gait(frames):
+    """Weights (T, T) that turn a foot's steps into the steps of its position averaged over the
+    frames within GAIT_SPREAD_FRAMES (before the window it stood at the initial pose, after it
+    holds its last position): a body moves with its feet's mean position over the gait cycle around
+    it, smoothly, and no faster where the window ends mid-stride."""
+    times = np.arange(-1, frames)  # -1: the initial pose
+    sources = np.clip(times[:, None] + np.arange(-GAIT_SPREAD_FRAMES, GAIT_SPREAD_FRAMES + 1), -1, frames - 1)
+    averaged = np.zeros((frames + 1, frames), np.float32)  # mean positions at frames -1..T-1 from steps 0..T-1
+    for row, frame_sources in zip(averaged, sources):
+        for source in frame_sources[frame_sources >= 0]:
+            row[:source + 1] += 1.0 / sources.shape[1]
+    return np.diff(averaged, axis=0)
 
 
 def following_given_feet(motion, trajectories, mask):

@@ -23,6 +23,9 @@ given (a ground path, a root curve), its step is also every unknown joint's
 horizontal base step (``body_steps``): the body travels with its hips unless
 the network moves it otherwise, so the decoder learns the gait, not the
 travel (a torso decoded without it lagged a given ground path by 0.2 m in 1 s).
+Under trial (``feet_lead``): where the root's is not given but feet are, the
+base step follows the given feet's mean position averaged over about a gait
+cycle (README, "Not shipped").
 
 Summed offsets drift, and a body decoded from a prior sample barely follows
 its given wrists and feet (elbows 0.2-0.3 m off with the wrists given). A
@@ -70,6 +73,7 @@ class ModelConfig:
     dropout: float = 0.0  # in every transformer layer; 0.1 cost a third of each CPU step while the model underfits
     facing_frame: bool = True  # the network sees each condition turned to face +Y (``TrajeVAE.turns``)
     heading_channel: bool = False  # the decoder also turns the body about its hips (``TrajeVAE._decode``)
+    feet_lead: bool = False  # unknown joints' base step also follows the given feet (``masks.body_steps``)
     mask_size = NUM_JOINTS * 3  # mask values per frame that the network sees: one per coordinate
     contact_size = 2  # foot contact logits per frame beside the poses: right, left
 
@@ -84,8 +88,9 @@ class ModelConfig:
 
     def network(self):
         """The fields that shape the weights: all but dropout, which only training uses (weights
-        trained with one dropout fine-tune with another), and the frame the network sees."""
-        return {name: value for name, value in self.to_dict().items() if name not in ("dropout", "facing_frame")}
+        trained with one dropout fine-tune with another), the frame the network sees and its base steps."""
+        return {name: value for name, value in self.to_dict().items()
+                if name not in ("dropout", "facing_frame", "feet_lead")}
 
 
 def _mlp(inputs, width, outputs, final_norm=True):
@@ -196,7 +201,8 @@ class TrajeVAE(nn.Module):
         frames = torch.cat([condition, pose_code[:, None].expand(-1, condition.shape[1], -1), given], dim=-1)
         first = self.decoder_input[0]
         condition_term = nn.functional.linear(frames, first.weight[:, self.config.latent:], first.bias)
-        steps = body_steps(given[..., NUM_JOINTS * 3:NUM_JOINTS * 6].unflatten(-1, (NUM_JOINTS, 3)), mask)
+        steps = body_steps(given[..., NUM_JOINTS * 3:NUM_JOINTS * 6].unflatten(-1, (NUM_JOINTS, 3)), mask,
+                           self.config.feet_lead)
         return mean, log_var, (initial, condition_term, steps) + turns, pose_code
 
     def posterior(self, initial, future, mask, pose_code):

@@ -169,7 +169,8 @@ class NumpyTrajeVAE:
         given = np.concatenate([_given_steps(initial, trajectories, mask), self._mask_input(mask)], -1)
         frames = np.concatenate([condition, np.broadcast_to(pose_code[:, None], condition.shape), given], -1)
         condition_term = w.linear("decoder_input.0", frames.astype(np.float32), ".weight_condition")
-        steps = body_steps(given[..., NUM_JOINTS * 3:NUM_JOINTS * 6].reshape(*mask.shape[:2], NUM_JOINTS, 3), mask)
+        steps = body_steps(given[..., NUM_JOINTS * 3:NUM_JOINTS * 6].reshape(*mask.shape[:2], NUM_JOINTS, 3), mask,
+                           self.config.get("feet_lead", False))
         return mean, np.clip(log_var, -10.0, 10.0), (initial, condition_term, steps) + turns
 
     def decode(self, z, encoded):

@@ -420,6 +420,8 @@ def main(argv=None):
                         help="the network sees each condition turned to face +Y (ModelConfig.facing_frame)")
     parser.add_argument("--heading-channel", action=argparse.BooleanOptionalAction, default=ModelConfig.heading_channel,
                         help="the decoder turns the body about its hips (ModelConfig.heading_channel)")
+    parser.add_argument("--feet-lead", action=argparse.BooleanOptionalAction, default=ModelConfig.feet_lead,
+                        help="the body's base step follows the given feet (ModelConfig.feet_lead)")
     add_config_flags(parser, TrainConfig, taken=("steps", "completion_steps", "batch", "learning_rate", "warmup", "seed",
                                                  "validate_every"), kinds=(float, int, str))
     add_config_flags(parser, ModelConfig, kinds=(float, int))  # the network's sizes too

@@ -50,6 +50,35 @@ def test_a_given_root_path_is_the_horizontal_base_step_of_every_joint_not_given(
                                torch.from_numpy(base))
 
 
+def test_given_feet_can_carry_the_body_along_the_ground_smoothly_over_a_gait_cycle():
+    """With ``feet_lead`` (under trial), where the hips' ground path is not given, the joints not given travel, as their base step,
+    at the given feet's mean speed over about a second, not in their strides, and from still;
+    their height is their own, and on frames where the root's path is given it leads instead."""
+    frames = 60
+    stance = (np.arange(frames) // 15) % 2  # 15 frames planted, 15 swinging at 8 cm a frame, forward in y
+    right = np.cumsum(np.where(stance == 1, 0.08, 0.0))
+    given = np.zeros((3, frames, 17, 3), np.float32)
+    given[:, :, 3, 1] = right
+    given[:, :, 6, 1] = np.cumsum(np.where(stance == 0, 0.08, 0.0))  # the left foot swings in turn
+    given[2, :, 0, 1] = np.linspace(0.0, 1.0, frames)
+    known = np.zeros_like(given)
+    known[0, :, 3] = 1.0  # the right foot's path
+    known[1:, :, [3, 6]] = 1.0  # both feet's
+    known[2, :20, 0, :2] = 1.0  # ... and a ground path for the first 20 frames
+    steps = np.diff(np.concatenate([np.zeros_like(given[:, :1]), given], axis=1), axis=1) * known
+    base = masks.body_steps(steps, known, feet_lead=True)
+    np.testing.assert_allclose(base[:2, 15:45, 9, 1], 0.04, atol=0.002)  # the thorax at the feet's mean speed
+    assert base[0, 0, 9, 1] < 0.005 and base[:2, :, 9, 1].max() < 0.0425  # from still, never in strides,
+    assert np.abs(np.diff(base[:2, :, 9, 1], axis=-1)).max() < 0.003  # without a jolt
+    assert not base[:, :, 9, 2].any() and not base[:, :, 9, 0].any()
+    np.testing.assert_array_equal(base[:, :, 3], steps[:, :, 3])  # a given foot keeps its own step
+    np.testing.assert_allclose(base[2, :20, 9, :2], steps[2, :20, 0, :2], atol=1e-7)  # the root's path leads
+    assert base[2, 20:, 9, 1].min() > 0.0
+    torch.testing.assert_close(masks.body_steps(torch.from_numpy(steps), torch.from_numpy(known), feet_lead=True),
+                               torch.from_numpy(base))
+    np.testing.assert_array_equal(masks.body_steps(steps, known)[:2, :, 9], 0.0)  # without it, none
+
+
 def test_a_decoded_body_goes_along_the_ground_where_its_given_feet_go():
     """Every joint moves with the given feet's mean horizontal offset from the decoded ones: on
     frames where a foot is given it stands on its path, between keys the move is eased linearly
