@@ -36,17 +36,21 @@ def body_steps(steps, mask, feet_lead=False):
     steps (B, T, J, 3) (zero where not given) and the mask (B, T, J, 3): a given joint's own step;
     for the unknown horizontal coordinates, the root's given step (a body given a ground path
     travels with it) and, with ``feet_lead`` (``ModelConfig.feet_lead``), on frames where the
-    root's is not given, the steps of the given feet's mean position averaged over about a gait
-    cycle (``_spread_over_gait``): a walk's feet alternate between planted and swinging at twice
-    the body's speed, and the body moves on between them."""
+    root's is not given, for every joint but the feet, the steps of the given feet's mean position
+    averaged over about a gait cycle (``_spread_over_gait``): a walk's feet alternate between
+    planted and swinging at twice the body's speed, and the body moves on between them. A foot
+    not given stands where it is unless the network steps it (given the lead too, it glided)."""
     if isinstance(mask, np.ndarray):
         horizontal = np.array([1.0, 1.0, 0.0], dtype=mask.dtype)
     else:
         horizontal = mask.new_tensor([1.0, 1.0, 0.0])
-    base = steps[..., ROOT, :]
+    base = steps[..., ROOT, None, :]  # (B, T, 1, 3)
     if feet_lead:
-        base = base + _feet_lead(steps, mask)
-    return steps + base[..., None, :] * horizontal * (1.0 - mask)
+        above_feet = np.ones((NUM_JOINTS, 1), np.float32)
+        above_feet[indices(FEET)] = 0.0
+        above_feet = above_feet if isinstance(mask, np.ndarray) else mask.new_tensor(above_feet)
+        base = base + _feet_lead(steps, mask)[..., None, :] * above_feet
+    return steps + base * horizontal * (1.0 - mask)
 
 
 def _feet_lead(steps, mask):

@@ -52,7 +52,8 @@ def test_a_given_root_path_is_the_horizontal_base_step_of_every_joint_not_given(
 
 def test_given_feet_can_carry_the_body_along_the_ground_smoothly_over_a_gait_cycle():
     """With ``feet_lead`` (under trial), where the hips' ground path is not given, the joints not given travel, as their base step,
-    at the given feet's mean speed over about a second, not in their strides, and from still;
+    at the given feet's mean speed over about a second, not in their strides, and from still (the
+    feet not given stand unless the network steps them);
     their height is their own, and on frames where the root's path is given it leads instead."""
     frames = 60
     stance = (np.arange(frames) // 15) % 2  # 15 frames planted, 15 swinging at 8 cm a frame, forward in y
@@ -72,6 +73,7 @@ def test_given_feet_can_carry_the_body_along_the_ground_smoothly_over_a_gait_cyc
     assert np.abs(np.diff(base[:2, :, 9, 1], axis=-1)).max() < 0.003  # without a jolt
     assert not base[:, :, 9, 2].any() and not base[:, :, 9, 0].any()
     np.testing.assert_array_equal(base[:, :, 3], steps[:, :, 3])  # a given foot keeps its own step
+    np.testing.assert_allclose(base[0, :, 6, :2], 0.0, atol=1e-7)  # the foot not given stands
     np.testing.assert_allclose(base[2, :20, 9, :2], steps[2, :20, 0, :2], atol=1e-7)  # the root's path leads
     assert base[2, 20:, 9, 1].min() > 0.0
     torch.testing.assert_close(masks.body_steps(torch.from_numpy(steps), torch.from_numpy(known), feet_lead=True),
