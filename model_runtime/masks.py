@@ -20,6 +20,7 @@ BERNOULLI_KEEP = 0.15  # the paper: each joint masked with p = 0.85, for all fra
 # of a long shot, which carries the previous window's last frames (``generation.generate``).
 CARRIED_SHARE = 0.15
 CARRIED_FRAMES = 20
+GAIT_SPREAD_FRAMES = 15  # each side of a frame: a gait cycle takes about 1 s at 30 fps (``body_steps``)
 
 
 def per_coordinate(mask):
@@ -67,9 +68,6 @@ def _feet_lead(steps, mask):
     return (spread @ steps[..., feet, :].sum(-2)) * free
 
 
-GAIT_SPREAD_FRAMES = 15  # each side: a gait cycle takes about 1 s at 30 fps
-
-
 def _spread_over_gait(frames):
     """Weights (T, T) that turn a foot's steps into the steps of its position averaged over the
     frames within GAIT_SPREAD_FRAMES (before the window it stood at the initial pose, after it
@@ -77,10 +75,8 @@ def _spread_over_gait(frames):
     it, smoothly, and no faster where the window ends mid-stride."""
     times = np.arange(-1, frames)  # -1: the initial pose
     sources = np.clip(times[:, None] + np.arange(-GAIT_SPREAD_FRAMES, GAIT_SPREAD_FRAMES + 1), -1, frames - 1)
-    averaged = np.zeros((frames + 1, frames), np.float32)  # mean positions at frames -1..T-1 from steps 0..T-1
-    for row, frame_sources in zip(averaged, sources):
-        for source in frame_sources[frame_sources >= 0]:
-            row[:source + 1] += 1.0 / sources.shape[1]
+    # the mean position at frames -1..T-1 (F + 1, F) from steps 0..T-1: a position sums the steps up to it
+    averaged = (sources[:, :, None] >= np.arange(frames)).mean(axis=1, dtype=np.float32)
     return np.diff(averaged, axis=0)
 
 
