@@ -69,7 +69,7 @@ def render(meta, evaluation=None, before=None, folder=weights.ASSETS):
     paths = " ".join(map(_shown, data["paths"]))
     init = meta.get("init")
     fine_tuned = "" if init is None else f"\nFine-tuned from {init}."
-    command = f"python -m model_runtime.train --data {paths}" + ("" if init is None else f" --init {init}") + _flags(train)
+    command = f"python -m model_runtime.train --data {paths}" + ("" if init is None else f" --init {init}") + _flags(train, config)
     count = train.get("best_of_draws", 1)
     draws = "one prior sample" if count == 1 else f"each of {count} prior samples"
     relative = (f", {train['best_of_relative_share']} x the root's error taken off the other joints'"
@@ -168,13 +168,20 @@ validation best-of-10 ADE {meta['validation_ade_m']:.4f} m.
 {previous}"""
 
 
-def _flags(train):
-    """The training command's flags for the fields of a weights file's training configuration that
-    differ from ``TrainConfig``'s defaults ('' for a default run)."""
-    from .train import TrainConfig  # train writes cards: imported here, not at the top
-    defaults = asdict(TrainConfig())
-    return "".join(f" --{name.replace('_', '-')} {value}" for name, value in train.items()
-                   if name in defaults and value != defaults[name])
+def _flags(train, config):
+    """The training command's flags for the fields of a weights file's training and network
+    configurations that differ from ``TrainConfig``'s and ``ModelConfig``'s defaults ('' for a
+    default run): ``--name value``, or ``--name`` / ``--no-name`` for a switch."""
+    from .model import ModelConfig  # train writes cards: imported here, not at the top
+    from .train import TrainConfig
+    flags = []
+    for values, defaults in ((train, asdict(TrainConfig())), (config, asdict(ModelConfig()))):
+        for name, value in values.items():
+            if name not in defaults or value == defaults[name]:
+                continue
+            flag = name.replace("_", "-")
+            flags.append(f" --{flag}" if value is True else f" --no-{flag}" if value is False else f" --{flag} {value}")
+    return "".join(flags)
 
 
 def write(folder, evaluation=None, before=None):
