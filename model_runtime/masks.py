@@ -20,6 +20,7 @@ BERNOULLI_KEEP = 0.15  # the paper: each joint masked with p = 0.85, for all fra
 # of a long shot, which carries the previous window's last frames (``generation.generate``).
 CARRIED_SHARE = 0.15
 CARRIED_FRAMES = 20
+HORIZONTAL = np.array([1.0, 1.0, 0.0], np.float32)  # the ground plane's coordinates
 GAIT_SPREAD_FRAMES = 15  # each side of a frame: a gait cycle takes about 1 s at 30 fps (``body_steps``)
 
 
@@ -41,31 +42,24 @@ def body_steps(steps, mask, feet_lead=False):
     averaged over about a gait cycle (``_spread_over_gait``): a walk's feet alternate between
     planted and swinging at twice the body's speed, and the body moves on between them. A foot
     not given stands where it is unless the network steps it (given the lead too, it glided)."""
-    if isinstance(mask, np.ndarray):
-        horizontal = np.array([1.0, 1.0, 0.0], dtype=mask.dtype)
-    else:
-        horizontal = mask.new_tensor([1.0, 1.0, 0.0])
     base = steps[..., ROOT, None, :]  # (B, T, 1, 3)
     if feet_lead:
         above_feet = np.ones((NUM_JOINTS, 1), np.float32)
         above_feet[indices(FEET)] = 0.0
-        above_feet = above_feet if isinstance(mask, np.ndarray) else mask.new_tensor(above_feet)
-        base = base + _feet_lead(steps, mask)[..., None, :] * above_feet
-    return steps + base * horizontal * (1.0 - mask)
+        base = base + _feet_lead(steps, mask)[..., None, :] * _like(above_feet, mask)
+    return steps + base * _like(HORIZONTAL, mask) * (1.0 - mask)
 
 
 def _feet_lead(steps, mask):
     """``body_steps``' share from the given feet: (B, T, 3), zero where the root's horizontal
     position is given."""
     feet = indices(FEET)
-    given = mask if isinstance(mask, np.ndarray) else mask.detach().cpu().numpy()
+    given = _numpy(mask)
     before = np.concatenate([np.ones_like(given[:, :1]), given[:, :-1]], axis=1)
     counted = (given[:, :, feet, 0] * before[:, :, feet, 0]).sum(-1, keepdims=True)  # (B, T, 1) feet with a step
     spread = _spread_over_gait(given.shape[1]) / np.maximum(counted, 1.0).transpose(0, 2, 1)  # (B, T, T)
     free = 1.0 - given[:, :, ROOT, :1]  # (B, T, 1)
-    if not isinstance(mask, np.ndarray):
-        spread, free = mask.new_tensor(spread), mask.new_tensor(free)
-    return (spread @ steps[..., feet, :].sum(-2)) * free
+    return (_like(spread, mask) @ steps[..., feet, :].sum(-2)) * _like(free, mask)
 
 
 def _spread_over_gait(frames):
@@ -102,15 +96,9 @@ def following_given_feet(motion, trajectories, mask):
     count = known.sum(-1)[:, None, :, None]
     offset = ((trajectories[:, None, :, feet] - motion[..., feet, :]) * known[:, None, ..., None]).sum(-2)
     offset = offset / (count + (count == 0))  # (B, count, T, 3)
-    anchors = mask[:, :, feet + [ROOT], 0]
-    anchors = (anchors if isinstance(anchors, np.ndarray) else anchors.detach().cpu().numpy()).max(-1) > 0
-    weights = _between_given_frames(anchors)[:, None]
-    if isinstance(motion, np.ndarray):
-        horizontal, weights = np.array([1.0, 1.0, 0.0], dtype=motion.dtype), weights.astype(motion.dtype)
-    else:
-        horizontal, weights = motion.new_tensor([1.0, 1.0, 0.0]), motion.new_tensor(weights)
-    moved = weights @ offset
-    return motion + (moved * horizontal)[..., None, :]
+    weights = _between_given_frames(_numpy(mask[:, :, feet + [ROOT], 0]).max(-1) > 0)[:, None]
+    moved = _like(weights, motion) @ offset
+    return motion + (moved * _like(HORIZONTAL, motion))[..., None, :]
 
 
 def _between_given_frames(given):
@@ -131,6 +119,18 @@ def _between_given_frames(given):
         real = start >= 0
         row[times[real], start[real]] += 1.0 - share[real]
     return weights
+
+
+def _numpy(values):
+    """numpy or torch ``values`` as a numpy array, to build weights from."""
+    return values if isinstance(values, np.ndarray) else values.detach().cpu().numpy()
+
+
+def _like(array, reference):
+    """A numpy ``array`` as the kind (numpy or torch), dtype and device of ``reference``."""
+    if isinstance(reference, np.ndarray):
+        return array.astype(reference.dtype, copy=False)
+    return reference.new_tensor(array)
 
 
 def trajectory_mask(joint_names, frames):
