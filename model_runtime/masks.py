@@ -21,6 +21,9 @@ BERNOULLI_KEEP = 0.15  # the paper: each joint masked with p = 0.85, for all fra
 CARRIED_SHARE = 0.15
 CARRIED_FRAMES = 20
 HORIZONTAL = np.array([1.0, 1.0, 0.0], np.float32)  # the ground plane's coordinates
+# Shares of the training mask families (``sample_training_masks``): Bernoulli trajectories, the
+# evaluation order's curves, sparse keys, end poses, partial curves, ground paths, waypoints.
+FAMILY_SHARES = (0.30, 0.22, 0.13, 0.13, 0.08, 0.10, 0.04)
 GAIT_SPREAD_FRAMES = 15  # each side of a frame: a gait cycle takes about 1 s at 30 fps (``body_steps``)
 
 
@@ -145,11 +148,14 @@ def evaluation_mask(k, frames):
     return trajectory_mask(EVALUATION_ORDER[:k], frames)
 
 
-def sample_training_masks(batch, frames, rng):
+def sample_training_masks(batch, frames, rng, curve_share=FAMILY_SHARES[1]):
     """A batch of training masks (B, T, J, 3) drawn from all families, ``CARRIED_SHARE`` of them
-    continuing a previous window."""
+    continuing a previous window; ``curve_share`` of them the evaluation order's curves (the other
+    families keep their proportions)."""
     masks = np.zeros((batch, frames, NUM_JOINTS, 3), dtype=np.float32)
-    family = rng.choice(7, size=batch, p=[0.30, 0.22, 0.13, 0.13, 0.08, 0.10, 0.04])
+    shares = np.array(FAMILY_SHARES) * (1.0 - curve_share) / (1.0 - FAMILY_SHARES[1])
+    shares[1] = curve_share
+    family = rng.choice(len(shares), size=batch, p=shares)
     hip = ROOT
     for b, kind in enumerate(family):
         mask = masks[b]

@@ -93,6 +93,7 @@ class TrainConfig:
     rest_start_share: float = 0.2  # windows whose initial pose is a rest pose (``augment.rest_start``)
     rest_start_still_m: float = 0.0  # ... among those whose feet stand still (``augment.still_through_blend``; 0: any)
     mirror_probability: float = 0.5
+    curve_mask_share: float = masks.FAMILY_SHARES[1]  # of training masks, the evaluation order's curves
     seed: int = 0
     validate_every: int = 500
     checkpoint_every: int = 250
@@ -136,7 +137,7 @@ def training_batch(sampler, config, frames, rng):
     motion[flip], soles[flip] = augment.mirror(motion[flip]), soles[flip][..., ::-1]
     motion = augment.rotate_about_z(motion, rng.uniform(0, 2 * np.pi, config.batch)).astype(np.float32)
     contacts = foot_contacts(motion, soles, clips.NATIVE_FPS)[:, 1:].astype(np.float32)
-    mask = masks.sample_training_masks(config.batch, frames, rng)
+    mask = masks.sample_training_masks(config.batch, frames, rng, config.curve_mask_share)
     return torch.from_numpy(motion), torch.from_numpy(mask), torch.from_numpy(contacts)
 
 

@@ -42,6 +42,28 @@ def test_protocol_is_root_relative():
     assert metrics.to_protocol(motion).shape == (5, 48)
 
 
+def test_training_masks_can_weigh_the_evaluation_orders_curves():
+    """``curve_share`` sets the share of the family of curves the evaluation gives (the first k of
+    its joints on every frame, sometimes with the ground path) and leaves the rest in proportion."""
+    frames, joints = 60, [masks.JOINT_INDEX[name] for name in masks.EVALUATION_ORDER]
+
+    def curves_share(share):
+        batch = masks.sample_training_masks(2000, frames, np.random.default_rng(1), curve_share=share)
+        body = batch[:, masks.CARRIED_FRAMES:]  # past any carried frames
+        given = body.any(axis=(1, 3))  # (B, J)
+        in_order = np.array([given[:, joints[:k]].all(axis=1) & ~given[:, joints[k:]].any(axis=1)
+                             for k in range(len(joints) + 1)]).any(axis=0)
+        others = np.delete(given, joints + [masks.ROOT], axis=1).any(axis=1)
+        curves = body[:, :, joints]  # (B, T, 4, 3)
+        whole = curves.all(axis=(1, 3)) | ~curves.any(axis=(1, 3))  # (B, 4): each on every frame or on none
+        return (in_order & ~others & whole.all(axis=1)).mean()
+
+    alike = curves_share(0.0)  # other families' masks that look the same (nothing given, a ground path alone)
+    assert curves_share(1.0) == 1.0
+    for share in (masks.FAMILY_SHARES[1], 0.5):
+        assert abs(curves_share(share) - (share + (1.0 - share) * alike)) < 0.03
+
+
 def test_training_masks_cover_every_family():
     rng = np.random.default_rng(0)
     batch = masks.sample_training_masks(400, 60, rng)
