@@ -130,7 +130,7 @@ def test_fine_tuning_writes_a_weights_folder_with_everything_the_addon_needs(stu
     assert meta["init"] == str(weights.ASSETS) and meta["data"]["train_clips"] == 3
     assert meta["config"]["dropout"] == 0.0
     card = (studio_weights / weights.CARD_FILE).read_text()
-    assert f"Fine-tuned from {weights.ASSETS}" in card and f"files under {library / 'held_out'}" in card
+    assert f"Fine-tuned from the weights then in `{weights.ASSETS}`" in card and f"files under {library / 'held_out'}" in card
     assert "Not evaluated yet" in card
 
 
