@@ -68,8 +68,8 @@ def render(meta, evaluation=None, before=None, folder=weights.ASSETS):
     config, train, data = meta["config"], meta["train"], meta["data"]
     paths = " ".join(map(_shown, data["paths"]))
     init = meta.get("init")
-    fine_tuned = "" if init is None else (f"\nFine-tuned from the weights then in `{init}` (the line above starts from"
-                                          " them; `make train` trains the base from scratch first, then fine-tunes it).")
+    fine_tuned = "" if init is None else (f"\nFine-tuned from the weights then in `{init}`: the line above starts from"
+                                          " them, so reproduce those first, with their own card's line.")
     command = f"python -m model_runtime.train --data {paths}" + ("" if init is None else f" --init {init}") + _flags(train, config)
     count = train.get("best_of_draws", 1)
     draws = "one prior sample" if count == 1 else f"each of {count} prior samples"
