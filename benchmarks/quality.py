@@ -12,8 +12,11 @@ real capture of ../shared/mocap imported with Blender's own BVH importer and
 measured the same way. Prints one table per rig and writes contact sheets
 (see contact_sheet.py): out/quality_<rig>_<shot>.png and out/quality_capture.png, and the
 README's picture of a walk, docs/walk.png (footprints from the top, a stride from the side).
-With ``--seeds N`` it prints instead the spread and the curve's worst frame of the shots with a
-hand or foot curve over seeds 0..N-1.
+With ``--seeds N`` it prints instead, for each shot but the walks over seeds 0..N-1, the worst
+lean, acceleration and balance, the spread and a curve's worst frame: one seed's figures say
+little of one set of weights against another. ``--weights DIR`` generates with the weights
+folder DIR (as ``python -m model_runtime.train --out DIR`` writes it) instead of the bundled ones,
+and leaves docs/walk.png as it is.
 """
 
 import csv
@@ -188,30 +191,39 @@ def table(title, rows):
         print("  ".join([label.ljust(width)] + [row[column].rjust(size) for column, size in zip(columns, sizes)]))
 
 
+SEED_COLUMNS = ("lean deg", "acc m/s2", "balance cm", "spread m")
+
+
 def over_seeds(count):
-    """``--seeds N``: the spread and the bound joint's worst frame off its curve of the shots with a
-    hand or foot curve, over seeds 0..N-1 on each rig: a seed's figures move a little with every change."""
+    """``--seeds N``: over seeds 0..N-1 on each rig, each shot but the walks: the mean and the worst
+    seed's lean, acceleration and balance (each seed's worst variant), the spread (the least seed's)
+    and, where a hand or foot is bound, its worst frame off the curve."""
+    limits = realism.load_angle_limits()
     for name, build in (("mannequin", blender_rigs.mannequin_rig), ("rigify", blender_rigs.rigify_rig)):
         scene = blender_rigs.fresh_scene()
         scene.render.fps, scene.render.fps_base = FPS, 1.0
         rig = build(scene)
         for label, frames, setup in SHOTS:
-            taken = [run_shot(rig, scene, frames, setup, 0)[0]]
-            if not set(taken[0].curves) - {"Hip"}:
-                continue
-            taken += [run_shot(rig, scene, frames, setup, seed)[0] for seed in range(1, count)]
-            spread, worst = np.array([(quality.spread(shot.joints), curve_error(shot)[1]) for shot in taken]).T
-            print(f"{name} {label} over seeds 0-{count - 1}: spread {spread.mean():.3f} m (least {spread.min():.3f}); "
-                  f"curve's worst frame {100 * worst.mean():.1f} cm (most {100 * worst.max():.1f})", flush=True)
+            taken = [run_shot(rig, scene, frames, setup, seed) for seed in range(count)]
+            lean, acc, balance, spread = np.array([[float(figures(shot, limits, error)[column])
+                                                    for column in SEED_COLUMNS] for shot, error in taken]).T
+            worst = np.array([curve_error(shot)[1] for shot, _ in taken])
+            curve = ("" if np.isnan(worst).all() else
+                     f"; curve's worst frame {100 * worst.mean():.1f} cm (most {100 * worst.max():.1f})")
+            print(f"{name} {label} over seeds 0-{count - 1}: lean {lean.mean():.0f} deg (most {lean.max():.0f}), "
+                  f"acc {acc.mean():.0f} m/s2 (most {acc.max():.0f}), balance {balance.mean():.1f} cm "
+                  f"(most {balance.max():.0f}), spread {spread.mean():.3f} m (least {spread.min():.3f}){curve}",
+                  flush=True)
 
 
 def main():
+    trajevae_addon.register()
+    if "--weights" in sys.argv:
+        print(f"weights: {api.use_weights(sys.argv[sys.argv.index('--weights') + 1])}")
     if "--seeds" in sys.argv:
-        trajevae_addon.register()
         over_seeds(int(sys.argv[sys.argv.index("--seeds") + 1]))
         return
     clock = time.perf_counter()
-    trajevae_addon.register()
     limits = realism.load_angle_limits()
     captured, capture_rows = [], []
     for stem in CAPTURE:
@@ -237,7 +249,7 @@ def main():
             rows.append((f"{label} ({frames} f)", figures(shot, limits, error)))
             contact_sheet.save(OUT / f"quality_{name}_{label}.png", f"{name}, {label}: {frames} frames at {FPS} fps, "
                                f"{VARIANTS} variants (seed {SEED}) as played", [("variant", shot)])
-            if (name, label) == WALK_FIGURE:
+            if (name, label) == WALK_FIGURE and "--weights" not in sys.argv:  # the picture is of the bundled weights
                 contact_sheet.walk(ROOT / "docs" / "walk.png", f"A path drawn on the floor and bound to the {name} "
                                    f"rig's root: {label}, {frames} frames at {FPS} fps, variant 1", shot)
             print(f"{name} {label}: done at {time.perf_counter() - clock:.0f} s", flush=True)
