@@ -130,24 +130,36 @@ def capture(stem):
     return as_imported, levelled, float(np.ptp(level[..., 2] - points[..., 2]))
 
 
+def motion_figures(shot):
+    """The numbers behind the table's acc, spike, lean, balance (cm) and spread columns, worst over
+    the takes (spread: nan for one take); ``--seeds`` averages them unrounded."""
+    pops = [quality.pops(joints, FPS) for joints in shot.joints]
+    off = [np.nanmax(quality.off_balance(joints, toes, shot.floor), initial=0.0)
+           for joints, toes in zip(shot.joints, shot.toes)]
+    return {"acc m/s2": max(worst for worst, _ in pops), "spike x": max(spike for _, spike in pops),
+            "lean deg": float(quality.lean_degrees(shot.joints.reshape(-1, 17, 3)).max()),
+            "balance cm": 100 * max(off),
+            "spread m": quality.spread(shot.joints) if len(shot.joints) > 1 else float("nan")}
+
+
 def figures(shot, limits, error=None):
     """The table's figures for a shot's takes, worst or mean over them as each column says."""
     takes = list(zip(shot.joints, shot.toes))
     per_take = [(quality.planted_toe_speed(toes, FPS, shot.floor), *quality.floating(toes, shot.floor),
-                 *quality.pops(joints, FPS), quality.steps(toes, shot.floor)) for joints, toes in takes]
-    planted, high, airborne, sink, worst, spike, steps = zip(*per_take)
-    balance = [quality.off_balance(joints, toes, shot.floor) for joints, toes in takes]
+                 quality.steps(toes, shot.floor)) for joints, toes in takes]
+    planted, high, airborne, sink, steps = zip(*per_take)
+    motion = motion_figures(shot)
     return {"planted m/s": f"{np.mean(planted):.2f}", "float cm": f"{100 * max(high):.1f}",
             "air %": f"{100 * np.mean(airborne):.0f}", "sink cm": f"{100 * max(sink):.1f}",
-            "acc m/s2": f"{max(worst):.0f}", "spike x": f"{max(spike):.0f}",
+            "acc m/s2": f"{motion['acc m/s2']:.0f}", "spike x": f"{motion['spike x']:.0f}",
             "steps R/L": "/".join(f"{n:.1f}".rstrip("0").rstrip(".") for n in np.mean(steps, axis=0)),
-            "lean deg": f"{quality.lean_degrees(shot.joints.reshape(-1, 17, 3)).max():.0f}",
+            "lean deg": f"{motion['lean deg']:.0f}",
             "roll deg": f"{quality.roll_degrees(shot.joints.reshape(-1, 17, 3)).max():.0f}",
             "swing m": f"{np.mean([quality.arm_swing(joints) for joints in shot.joints]):.2f}",
             "knee-in deg": f"{quality.knee_inward_degrees(shot.joints.reshape(-1, 17, 3)).max():.0f}",
-            "balance cm": f"{100 * max(np.nanmax(off, initial=0.0) for off in balance):.0f}",
+            "balance cm": f"{motion['balance cm']:.0f}",
             "off-limit %": f"{100 * realism.share_outside_limits(shot.joints, limits):.0f}",
-            "spread m": f"{quality.spread(shot.joints):.2f}" if len(shot.joints) > 1 else "-",
+            "spread m": f"{motion['spread m']:.2f}" if len(shot.joints) > 1 else "-",
             "curve cm": "{:.1f} / {:.1f}".format(*(100 * curve_error(shot))) if set(shot.curves) - {"Hip"} else "-",
             "key cm": "-" if error is None else
             f"{100 * np.delete(error, J['Head']).max():.1f} / {100 * error[J['Head']]:.1f}",
@@ -198,21 +210,20 @@ def over_seeds(count):
     """``--seeds N``: over seeds 0..N-1 on each rig, each shot but the walks: the mean and the worst
     seed's lean, acceleration and balance (each seed's worst variant), the spread (the least seed's)
     and, where a hand or foot is bound, its worst frame off the curve."""
-    limits = realism.load_angle_limits()
     for name, build in (("mannequin", blender_rigs.mannequin_rig), ("rigify", blender_rigs.rigify_rig)):
         scene = blender_rigs.fresh_scene()
         scene.render.fps, scene.render.fps_base = FPS, 1.0
         rig = build(scene)
         for label, frames, setup in SHOTS:
-            taken = [run_shot(rig, scene, frames, setup, seed) for seed in range(count)]
-            lean, acc, balance, spread = np.array([[float(figures(shot, limits, error)[column])
-                                                    for column in SEED_COLUMNS] for shot, error in taken]).T
-            worst = np.array([curve_error(shot)[1] for shot, _ in taken])
+            taken = [run_shot(rig, scene, frames, setup, seed)[0] for seed in range(count)]
+            lean, acc, balance, spread = np.array([[motion_figures(shot)[column] for column in SEED_COLUMNS]
+                                                   for shot in taken]).T
+            worst = np.array([curve_error(shot)[1] for shot in taken])
             curve = ("" if np.isnan(worst).all() else
                      f"; curve's worst frame {100 * worst.mean():.1f} cm (most {100 * worst.max():.1f})")
             print(f"{name} {label} over seeds 0-{count - 1}: lean {lean.mean():.0f} deg (most {lean.max():.0f}), "
                   f"acc {acc.mean():.0f} m/s2 (most {acc.max():.0f}), balance {balance.mean():.1f} cm "
-                  f"(most {balance.max():.0f}), spread {spread.mean():.3f} m (least {spread.min():.3f}){curve}",
+                  f"(most {balance.max():.1f}), spread {spread.mean():.3f} m (least {spread.min():.3f}){curve}",
                   flush=True)
 
 
