@@ -159,7 +159,7 @@ def figures(shot, limits, error=None):
             "knee-in deg": f"{quality.knee_inward_degrees(shot.joints.reshape(-1, 17, 3)).max():.0f}",
             "balance cm": f"{motion['balance cm']:.0f}",
             "off-limit %": f"{100 * realism.share_outside_limits(shot.joints, limits):.0f}",
-            "spread m": f"{motion['spread m']:.2f}" if len(shot.joints) > 1 else "-",
+            "spread m": "-" if np.isnan(motion["spread m"]) else f"{motion['spread m']:.2f}",
             "curve cm": "{:.1f} / {:.1f}".format(*(100 * curve_error(shot))) if set(shot.curves) - {"Hip"} else "-",
             "key cm": "-" if error is None else
             f"{100 * np.delete(error, J['Head']).max():.1f} / {100 * error[J['Head']]:.1f}",
@@ -229,7 +229,8 @@ def over_seeds(count):
 
 def main():
     trajevae_addon.register()
-    if "--weights" in sys.argv:
+    bundled = "--weights" not in sys.argv
+    if not bundled:
         print(f"weights: {api.use_weights(sys.argv[sys.argv.index('--weights') + 1])}")
     if "--seeds" in sys.argv:
         over_seeds(int(sys.argv[sys.argv.index("--seeds") + 1]))
@@ -260,7 +261,7 @@ def main():
             rows.append((f"{label} ({frames} f)", figures(shot, limits, error)))
             contact_sheet.save(OUT / f"quality_{name}_{label}.png", f"{name}, {label}: {frames} frames at {FPS} fps, "
                                f"{VARIANTS} variants (seed {SEED}) as played", [("variant", shot)])
-            if (name, label) == WALK_FIGURE and "--weights" not in sys.argv:  # the picture is of the bundled weights
+            if (name, label) == WALK_FIGURE and bundled:  # the picture is of the bundled weights
                 contact_sheet.walk(ROOT / "docs" / "walk.png", f"A path drawn on the floor and bound to the {name} "
                                    f"rig's root: {label}, {frames} frames at {FPS} fps, variant 1", shot)
             print(f"{name} {label}: done at {time.perf_counter() - clock:.0f} s", flush=True)
