@@ -6,7 +6,8 @@ origin, adult proportions. ``Placement`` maps a scene's units and floor into
 that frame and back; ``generate`` chains windows: each window after the first
 starts ``overlap`` frames before the previous one ends, sees those frames as
 known (see below), and the two are cross-faded over the overlap, so there is
-no seam. Every frame keeps the initial pose's proportions above
+no seam; where its carried frames end, a few frames are smoothed
+(``smooth_across``). Every frame keeps the initial pose's proportions above
 the hips (``with_proportions``) and a rigid pelvis whose roll stays near the
 initial pose's (``with_rigid_pelvis``). A later window carries the legs and the hips'
 horizontal position only: its upper body and hip height start afresh from the
@@ -22,7 +23,7 @@ import numpy as np
 from . import selection
 from .data.clips import NATIVE_FPS
 from .augment import rotate_about_z
-from .filters import smoothstep
+from .filters import smooth, smoothstep
 from .masks import per_coordinate
 from .retarget import steady_across
 from .skeleton import (JOINT_INDEX, JOINT_NAMES, LIMBS, LOWER_BODY, PARENTS, UPPER_BODY, elevation, facing, hips_roll,
@@ -41,6 +42,11 @@ WINDOW_OVERLAP = 15
 # drift dead there (a reach's body, moving 1 m/s sideways, stopped in one frame: 83 m/s^2 on the
 # elbow as played); 6 and 10 frames carried it on far enough to bend legs past their limits.
 MOMENTUM_FRAMES = 4
+# Where a later window's carried frames end, its decoder lets the carried legs go: every joint's
+# speed changes in a frame there. Within SEAM_FRAMES model frames of that frame the motion is
+# eased toward itself smoothed over SEAM_SIGMA frames, so the change spreads over a few frames.
+SEAM_FRAMES = 6
+SEAM_SIGMA = 2.0
 # The hips' roll (the line between the hip joints tilting about the body's forward axis) is kept
 # as generated up to PELVIS_ROLL_FREE_DEG beyond the initial pose's and eased toward
 # PELVIS_ROLL_MOST_DEG beyond it: the model rolled the pelvis 12-24 degrees in a wave and a long
@@ -150,6 +156,20 @@ def with_momentum(motion, done, hips_free):
     travelled = MOMENTUM_FRAMES * (share - share ** 3 + share ** 4 / 2)  # the integral of 1 - smoothstep
     out[:, done + 1:, PELVIS_AND_ABOVE] += travelled[None, :, None, None] * change[:, None, None]
     return out
+
+
+def smooth_across(motion, at):
+    """Ease motion (B, F, 17, 3), in place, within SEAM_FRAMES of frame ``at`` toward itself
+    smoothed over SEAM_SIGMA frames (fully at ``at``, not at all SEAM_FRAMES away): a kink there
+    spreads over a few frames; a joint that is still or moves steadily stays as it is. Only the
+    frames around ``at`` are read, so a long shot's windows cost no more."""
+    low, high = max(at - SEAM_FRAMES, 0), min(at + SEAM_FRAMES + 1, motion.shape[1])
+    reach = int(np.ceil(3 * SEAM_SIGMA))  # the smoothing's own span either side
+    first, last = max(low - reach, 0), min(high + reach, motion.shape[1])
+    over_frames = np.moveaxis(motion[:, first:last], 1, -1)  # (B, 17, 3, frames)
+    smoothed = np.moveaxis(smooth(over_frames, SEAM_SIGMA), -1, 1)[:, low - first:high - first]
+    weight = 1.0 - smoothstep(np.abs(np.arange(low, high) - at) / SEAM_FRAMES)
+    motion[:, low:high] += weight[None, :, None, None] * (smoothed - motion[:, low:high])
 
 
 def anchored(poses, initial):
@@ -275,6 +295,7 @@ def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, samp
         if start > 0 and carried < frames:
             hips_free = known[:, carried, JOINT_INDEX["Hip"], :2].max(axis=-1) == 0.0  # no ground path
             motion[:, done - 1:start + frames + 1] = with_momentum(motion[:, done - 1:start + frames + 1], 1, hips_free)
+            smooth_across(motion[:, :start + frames + 1], done)
         planted[:, done + 1:start + frames + 1] = feet[:, carried:frames]
         if progress is not None:
             progress((start + frames) / total)

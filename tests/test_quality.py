@@ -401,6 +401,25 @@ def test_a_later_window_carries_on_the_bodys_speed_where_its_carried_frames_end(
     np.testing.assert_array_equal(carried_on[1], motion[1])
 
 
+def test_where_a_later_windows_carried_frames_end_a_change_of_speed_spreads_over_frames():
+    """Each joint still, then moving 3 cm a frame from the frame where the carried frames end (the
+    decoder letting the carried legs go): the change of speed, a kink of 0.03 in one frame, spreads
+    over frames to under a third of that; a joint moving steadily, and frames beyond
+    SEAM_FRAMES, stay as they were."""
+    frames, done = 40, 20
+    motion = np.zeros((2, frames, 17, 3), np.float32)
+    motion[0, done:, :, 0] = 0.03 * np.arange(frames - done)[:, None]
+    motion[1, :, :, 1] = 0.03 * np.arange(frames)[:, None]
+    smoothed = motion.copy()
+    generation.smooth_across(smoothed, done)
+    kink = np.abs(np.diff(motion[0, :, 0, 0], 2)).max()
+    assert kink == pytest.approx(0.03)
+    assert np.abs(np.diff(smoothed[0, :, 0, 0], 2)).max() < kink / 3.0
+    np.testing.assert_allclose(smoothed[1], motion[1], atol=1e-6)
+    beyond = np.r_[:done - generation.SEAM_FRAMES, done + generation.SEAM_FRAMES + 1:frames]
+    np.testing.assert_array_equal(smoothed[0, beyond], motion[0, beyond])
+
+
 def test_long_shots_are_windows_that_overlap_and_a_step_at_a_join_shows_as_a_seam():
     schedule = generation.windows(299, 60)  # 300 frames at 30 fps: 299 model frames after the initial one
     assert schedule[0] == (0, 60, 0) and all(carried == generation.WINDOW_OVERLAP for _, _, carried in schedule[1:])
