@@ -265,6 +265,20 @@ def test_a_sliding_body_is_held_by_its_planted_feet():
     assert contacts.all() and speed < 1e-6 and np.abs(turns).max() < 1e-9
 
 
+def test_a_body_held_against_its_feet_changes_speed_over_frames_where_they_start_and_stop_sliding():
+    """A still body whose planted feet glide at 0.5 m/s for half a second: the body is moved back
+    by their glide, 0.25 m in all, and where the glide starts and stops its speed changes over
+    frames (SLIDE_SMOOTHING_S), not in one (15 m/s^2 on the hips)."""
+    motion, initial = _still(90), mannequin_module.REST_JOINTS.astype(np.float64)
+    feet = [JOINT_INDEX["RFoot"], JOINT_INDEX["LFoot"]]
+    motion[:, :, feet, 1] += np.clip(np.arange(90) - 30, 0, 15)[None, :, None] * 0.5 / FPS
+    standing, pinned = initial[JOINT_INDEX["RFoot"], 2], np.zeros((90, 17))
+    held = cleanup.without_slide(motion, FPS, standing, pinned, initial, {}, np.zeros((1, 90, 2)))
+    hips = held[0, :, JOINT_INDEX["Hip"], 1]
+    assert hips[-1] - hips[0] == pytest.approx(-0.25, abs=0.001)
+    assert np.abs(np.diff(hips, 2)).max() * FPS * FPS < 7.5
+
+
 def test_a_foot_the_model_says_is_planted_is_held_on_the_floor_though_generated_above_it():
     motion, initial = _still(60), mannequin_module.REST_JOINTS.astype(np.float64)
     right = JOINT_INDEX["RFoot"]
