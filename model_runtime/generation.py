@@ -26,8 +26,8 @@ from .augment import rotate_about_z
 from .filters import smooth, smoothstep
 from .masks import per_coordinate
 from .retarget import steady_across
-from .skeleton import (JOINT_INDEX, JOINT_NAMES, LIMBS, LOWER_BODY, PARENTS, UPPER_BODY, elevation, facing, hips_roll,
-                       indices)
+from .skeleton import (FEET, JOINT_INDEX, JOINT_NAMES, LIMBS, LOWER_BODY, PARENTS, UPPER_BODY, elevation, facing,
+                       hips_roll, indices, lower_ankle_height)
 
 # Hip-knee-ankle length of the training subjects (metres, 201 clips: 0.796 to
 # 0.880, median 0.808): rigs whose legs fall outside are scaled to the median.
@@ -158,6 +158,19 @@ def with_momentum(motion, done, hips_free):
     return out
 
 
+def on_the_floor(motion, known, carried, frames, standing):
+    """A later window's motions (B, W, 17, 3) moved up or down as one so that the lower ankle's
+    lowest over the window's own frames (``carried`` to ``frames``) stands at ``standing``, where
+    no foot's height is given there (``known`` (B, W, 17, 3)): each continuation rose 2-3 cm on its
+    carried legs, and a 10 s wave's decoded ankles ended 0.25 m off the floor."""
+    feet = indices(FEET)
+    lowest = motion[:, carried:frames, feet, 2].min(axis=(1, 2))  # (B,)
+    free = known[:, carried:frames, feet, 2].max(axis=(1, 2)) == 0.0
+    out = motion.copy()
+    out[..., 2] += np.where(free, standing - lowest, 0.0)[:, None, None]
+    return out
+
+
 def smooth_across(motion, at):
     """Ease motion (B, F, 17, 3), in place, within SEAM_FRAMES of frame ``at`` toward itself
     smoothed over SEAM_SIGMA frames (fully at ``at``, not at all SEAM_FRAMES away): a kink there
@@ -196,12 +209,14 @@ def _facing_angle(poses):
 
 def with_rigid_pelvis(motion, reference):
     """Motions (V, F, 17, 3) with the hip joints as far apart as in ``reference`` (17, 3), about
-    their midpoint, along the hips' direction steadied as the retarget steadies it
-    (``retarget.steady_across``: where the generated hips lie close together, the shoulders'
-    direction takes over) and rolled no further than PELVIS_ROLL_MOST_DEG beyond ``reference``'s,
-    eased (no kink in its speed) from PELVIS_ROLL_FREE_DEG on. The hip joints are a rigid offset
-    of the pelvis; the model keeps each one's distance from the root but not their angle, and in
-    some takes brought them within 5 cm of each other, where the facing they define flipped."""
+    their midpoint placed from the root as in ``reference`` (turned with the pelvis), along the
+    hips' direction steadied as the retarget steadies it (``retarget.steady_across``: where the
+    generated hips lie close together, the shoulders' direction takes over) and rolled no further
+    than PELVIS_ROLL_MOST_DEG beyond ``reference``'s, eased (no kink in its speed) from
+    PELVIS_ROLL_FREE_DEG on. The hip joints are a rigid offset of the pelvis; the model keeps each
+    one's distance from the root but not their angle, and in some takes brought them within 5 cm
+    of each other, where the facing they define flipped; about their own midpoint, a 10 s wave's
+    hip joints rose 0.25 m above the root, window by window."""
     right, left = JOINT_INDEX["RHip"], JOINT_INDEX["LHip"]
     across = np.stack([steady_across(reference, variant)[0] for variant in motion])  # (V, F, 3) unit
     roll = elevation(across)
@@ -213,7 +228,12 @@ def with_rigid_pelvis(motion, reference):
     ground /= np.maximum(np.linalg.norm(ground, axis=-1, keepdims=True), 1e-9)
     half = 0.5 * np.linalg.norm(reference[left] - reference[right]) * (
         np.cos(kept)[..., None] * ground + np.sin(kept)[..., None] * np.array([0.0, 0.0, 1.0]))
-    middle = 0.5 * (motion[..., left, :] + motion[..., right, :])
+    start = reference[left] - reference[right]
+    turn = np.arctan2(ground[..., 1], ground[..., 0]) - np.arctan2(start[1], start[0])  # (V, F)
+    offset = 0.5 * (reference[left] + reference[right]) - reference[JOINT_INDEX["Hip"]]
+    middle = motion[..., JOINT_INDEX["Hip"], :] + np.stack(  # where it lies from the root, turned with the pelvis
+        [np.cos(turn) * offset[0] - np.sin(turn) * offset[1], np.sin(turn) * offset[0] + np.cos(turn) * offset[1],
+         np.full(turn.shape, offset[2])], axis=-1)
     out = motion.copy()
     out[..., left, :], out[..., right, :] = middle + half, middle - half
     return out
@@ -286,6 +306,8 @@ def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, samp
                                                   carried) if draws > 1 else np.zeros(count, int))
             new, feet = new[np.arange(count), pick], feet[np.arange(count), pick]
         new = with_rigid_pelvis(new, initial)
+        if start > 0:
+            new = on_the_floor(new, known, carried, frames, lower_ankle_height(initial))
         fade = smoothstep(np.linspace(0.0, 1.0, carried + 2)[1:-1, None])  # no kink where it starts or ends
         motion[:, start + 1:done + 1] = motion[:, start + 1:done + 1] * (1.0 - fade[..., None]) \
             + new[:, :carried] * fade[..., None]

@@ -396,6 +396,37 @@ def test_hips_the_model_brings_together_keep_the_pelvis_width_and_facing():
                                np.linalg.norm(initial[left] - initial[right]), rtol=1e-9)
 
 
+def test_hip_joints_drifting_off_the_root_are_put_back_where_they_lie_from_it_turned_with_the_pelvis():
+    """Window by window a 10 s wave's hip joints rose 0.25 m above the root about their own middle;
+    they stay where they lie from the root in the start pose, turned with the pelvis."""
+    initial = mannequin_module.REST_JOINTS.astype(np.float64)
+    initial[[JOINT_INDEX["RHip"], JOINT_INDEX["LHip"]], 2] -= 0.06  # hip joints a little under the root
+    turned = initial - initial[JOINT_INDEX["Hip"]]
+    turned[:, :2] = turned[:, [1, 0]] * [-1.0, 1.0]  # the whole body turned 90 degrees about Z
+    drifted = np.repeat(turned[None, None], 30, axis=1)
+    hips = [JOINT_INDEX["RHip"], JOINT_INDEX["LHip"]]
+    drifted[0, :, hips, 2] += np.linspace(0.0, 0.25, 30)[None, :]
+    kept = generation.with_rigid_pelvis(drifted, initial)[0]
+    np.testing.assert_allclose(kept[:, hips], np.repeat(turned[None, hips], 30, axis=0), atol=1e-6)
+
+
+def test_a_later_window_rising_on_its_carried_legs_is_set_back_on_the_floor_unless_a_foot_is_given():
+    initial = mannequin_module.REST_JOINTS.astype(np.float64)
+    standing = skeleton.lower_ankle_height(initial)
+    window = np.repeat(initial[None, None], 60, axis=1).repeat(2, axis=0)  # (2, W, 17, 3)
+    window[..., 2] += np.linspace(0.0, 0.03, 60)[None, :, None]  # rising 3 cm through the window
+    known = np.zeros_like(window)
+    known[:, :15, skeleton.indices(skeleton.LOWER_BODY)] = 1.0  # the carried legs
+    known[1, 15:, JOINT_INDEX["RFoot"]] = 1.0  # a foot's curve in the second
+    placed = generation.on_the_floor(window, known, 15, 60, standing)
+    lowest = placed[0, 15:, skeleton.indices(skeleton.FEET), 2].min()
+    assert lowest == pytest.approx(standing, abs=1e-9)
+    shift = placed[0] - window[0]
+    np.testing.assert_array_equal(shift[..., :2], 0.0)
+    np.testing.assert_allclose(shift[..., 2], shift[0, 0, 2], atol=1e-12)  # up or down as one
+    np.testing.assert_array_equal(placed[1], window[1])
+
+
 def test_a_later_window_carries_on_the_bodys_speed_where_its_carried_frames_end():
     """A body moving 3 cm a frame sideways through the carried frames, then still in the window's
     own: it slows over MOMENTUM_FRAMES instead of stopping in a frame; its legs, and a body whose
