@@ -27,7 +27,7 @@ from .filters import smooth, smoothstep
 from .masks import per_coordinate
 from .retarget import steady_across
 from .skeleton import (FEET, JOINT_INDEX, JOINT_NAMES, LIMBS, LOWER_BODY, PARENTS, UPPER_BODY, elevation, facing,
-                       hips_roll, indices, lower_ankle_height)
+                       hips_roll, indices, lower_ankle_height, turned)
 
 # Hip-knee-ankle length of the training subjects (metres, 201 clips: 0.796 to
 # 0.880, median 0.808): rigs whose legs fall outside are scaled to the median.
@@ -228,12 +228,11 @@ def with_rigid_pelvis(motion, reference):
     ground /= np.maximum(np.linalg.norm(ground, axis=-1, keepdims=True), 1e-9)
     half = 0.5 * np.linalg.norm(reference[left] - reference[right]) * (
         np.cos(kept)[..., None] * ground + np.sin(kept)[..., None] * np.array([0.0, 0.0, 1.0]))
-    start = reference[left] - reference[right]
-    turn = np.arctan2(ground[..., 1], ground[..., 0]) - np.arctan2(start[1], start[0])  # (V, F)
+    start = (reference[left] - reference[right])[:2] / np.linalg.norm((reference[left] - reference[right])[:2])
+    turns = (ground[..., 0] * start[0] + ground[..., 1] * start[1],  # (cos, sin) (V, F) of the pelvis's turn
+             start[0] * ground[..., 1] - start[1] * ground[..., 0])
     offset = 0.5 * (reference[left] + reference[right]) - reference[JOINT_INDEX["Hip"]]
-    middle = motion[..., JOINT_INDEX["Hip"], :] + np.stack(  # where it lies from the root, turned with the pelvis
-        [np.cos(turn) * offset[0] - np.sin(turn) * offset[1], np.sin(turn) * offset[0] + np.cos(turn) * offset[1],
-         np.full(turn.shape, offset[2])], axis=-1)
+    middle = motion[..., JOINT_INDEX["Hip"], :] + turned(np.broadcast_to(offset, motion.shape[:2] + (3,)), turns)
     out = motion.copy()
     out[..., left, :], out[..., right, :] = middle + half, middle - half
     return out
@@ -276,6 +275,7 @@ def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, samp
     motion = np.zeros((count, 1 + total, 17, 3), np.float32)
     motion[:, 0] = initial
     planted = None
+    standing = lower_ankle_height(initial)
     carry = np.zeros((17, 3), np.float32)  # what a later window carries: the legs, the hips' horizontal position
     carry[indices(LOWER_BODY)] = 1.0
     carry[JOINT_INDEX["Hip"], 2] = 0.0
@@ -307,7 +307,7 @@ def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, samp
             new, feet = new[np.arange(count), pick], feet[np.arange(count), pick]
         new = with_rigid_pelvis(new, initial)
         if start > 0:
-            new = on_the_floor(new, known, carried, frames, lower_ankle_height(initial))
+            new = on_the_floor(new, known, carried, frames, standing)
         fade = smoothstep(np.linspace(0.0, 1.0, carried + 2)[1:-1, None])  # no kink where it starts or ends
         motion[:, start + 1:done + 1] = motion[:, start + 1:done + 1] * (1.0 - fade[..., None]) \
             + new[:, :carried] * fade[..., None]
