@@ -57,13 +57,14 @@ lower toe's highest height above and deepest depth below it. air: frames with bo
 joint acceleration; spike: worst frame over median frame. steps: per foot, right/left. lean: hips to neck base from
 vertical. roll: the hip line's tilt from horizontal. swing: the wrists' swing front to back (5th-95th percentile
 from the shoulder). knee-in: knee pointing inward of forward. balance: the centre of mass outside the soles where
-both feet bear weight (toes within 5 cm of the floor). off-limit: frames outside the joint-angle limits
+both feet bear weight (toes within 5 cm of the floor). held-up: frames with a toe over 5 cm up for 0.6 s or more
+(a foot left hovering; a walk's swing lasts 0.3-0.5 s). off-limit: frames outside the joint-angle limits
 fitted on the training data. spread: mean pairwise joint distance of the variants. curve: the bound joint to where
 its curve puts it, mean / worst frame. path: the hips' farthest from a ground path; facing: worst angle of the
 body's facing from the path's tangent; hip h: the hips' lowest height over their standing height; seam: the worst
 acceleration within 2 frames of where model windows meet over the worst elsewhere / the same of the means. key:
 worst keyed joint at the key frame / the head top, which the keyed rotation of the head bone places. Over variants:
-float, sink, acc, spike, lean, roll, knee-in, balance and key are the worst, the rest means.
+float, sink, acc, spike, lean, roll, knee-in, balance, held-up and key are the worst, the rest means.
 Capture, levelled: the clip with its capture floor levelled as the training data loader levels it; the tilt is
 how far that moved points up or down over the clip."""
 
@@ -131,7 +132,7 @@ def capture(stem):
 
 
 def motion_figures(shot):
-    """The numbers behind the table's acc, spike, lean, balance (cm) and spread columns, worst over
+    """The numbers behind the table's acc, spike, lean, balance (cm), held-up and spread columns, worst over
     the takes (spread: nan for one take); ``--seeds`` averages them unrounded."""
     pops = [quality.pops(joints, FPS) for joints in shot.joints]
     off = [np.nanmax(quality.off_balance(joints, toes, shot.floor), initial=0.0)
@@ -139,6 +140,7 @@ def motion_figures(shot):
     return {"acc m/s2": max(worst for worst, _ in pops), "spike x": max(spike for _, spike in pops),
             "lean deg": float(quality.lean_degrees(shot.joints.reshape(-1, 17, 3)).max()),
             "balance cm": 100 * max(off),
+            "held-up %": 100 * max(quality.held_up(toes, shot.floor, FPS) for toes in shot.toes),
             "spread m": quality.spread(shot.joints) if len(shot.joints) > 1 else float("nan")}
 
 
@@ -158,6 +160,7 @@ def figures(shot, limits, error=None):
             "swing m": f"{np.mean([quality.arm_swing(joints) for joints in shot.joints]):.2f}",
             "knee-in deg": f"{quality.knee_inward_degrees(shot.joints.reshape(-1, 17, 3)).max():.0f}",
             "balance cm": f"{motion['balance cm']:.0f}",
+            "held-up %": f"{motion['held-up %']:.0f}",
             "off-limit %": f"{100 * realism.share_outside_limits(shot.joints, limits):.0f}",
             "spread m": "-" if np.isnan(motion["spread m"]) else f"{motion['spread m']:.2f}",
             "curve cm": "{:.1f} / {:.1f}".format(*(100 * curve_error(shot))) if set(shot.curves) - {"Hip"} else "-",
@@ -203,12 +206,12 @@ def table(title, rows):
         print("  ".join([label.ljust(width)] + [row[column].rjust(size) for column, size in zip(columns, sizes)]))
 
 
-SEED_COLUMNS = ("lean deg", "acc m/s2", "balance cm", "spread m")
+SEED_COLUMNS = ("lean deg", "acc m/s2", "balance cm", "held-up %", "spread m")
 
 
 def over_seeds(count):
     """``--seeds N``: over seeds 0..N-1 on each rig, each shot but the walks: the mean and the worst
-    seed's lean, acceleration and balance (each seed's worst variant), the spread (the least seed's)
+    seed's lean, acceleration, balance and held-up share (each seed's worst variant), the spread (the least seed's)
     and, where a hand or foot is bound, its worst frame off the curve."""
     for name, build in (("mannequin", blender_rigs.mannequin_rig), ("rigify", blender_rigs.rigify_rig)):
         scene = blender_rigs.fresh_scene()
@@ -216,14 +219,14 @@ def over_seeds(count):
         rig = build(scene)
         for label, frames, setup in SHOTS:
             taken = [run_shot(rig, scene, frames, setup, seed)[0] for seed in range(count)]
-            lean, acc, balance, spread = np.array([[motion_figures(shot)[column] for column in SEED_COLUMNS]
+            lean, acc, balance, held, spread = np.array([[motion_figures(shot)[column] for column in SEED_COLUMNS]
                                                    for shot in taken]).T
             worst = np.array([curve_error(shot)[1] for shot in taken])
             curve = ("" if np.isnan(worst).all() else
                      f"; curve's worst frame {100 * worst.mean():.1f} cm (most {100 * worst.max():.1f})")
             print(f"{name} {label} over seeds 0-{count - 1}: lean {lean.mean():.0f} deg (most {lean.max():.0f}), "
                   f"acc {acc.mean():.0f} m/s2 (most {acc.max():.0f}), balance {balance.mean():.1f} cm "
-                  f"(most {balance.max():.1f}), spread {spread.mean():.3f} m (least {spread.min():.3f}){curve}",
+                  f"(most {balance.max():.1f}), held up {held.mean():.0f} % (most {held.max():.0f}), spread {spread.mean():.3f} m (least {spread.min():.3f}){curve}",
                   flush=True)
 
 

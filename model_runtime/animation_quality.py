@@ -18,6 +18,8 @@ PLANTED_BAND_M = 0.02  # a toe this close to the floor is planted
 AIRBORNE_M = 0.03  # both toes higher than this: the body is off the ground
 STEP_LIFT_M = 0.04  # a foot lifted this far above the floor ...
 STEP_LENGTH_M = 0.15  # ... and landing this far away (horizontally) made a step
+HELD_UP_M = 0.05  # a toe this far above the floor ...
+HELD_UP_S = 0.6  # ... for this long is a foot held up, not a step (a walk's swing lasts 0.3-0.5 s)
 # A foot whose toe is this close to the floor bears weight (captured standing feet rock up to 2.5 cm);
 # its sole reaches HEEL_SHARE of the ankle-to-toe length behind the ankle and FOOT_HALF_WIDTH_M to
 # either side of that line (and beyond the toe joint, as the toes do).
@@ -47,6 +49,18 @@ def floating(toes, floor):
     lower = toes[..., 2].min(axis=1) - floor
     airborne = (toes[..., 2] - floor > AIRBORNE_M).all(axis=1)
     return float(lower.max()), float(airborne.mean()), float(max(0.0, -lower.min()))
+
+
+def held_up(toes, floor, fps):
+    """Share of frames (F,) on which a toe has been over HELD_UP_M above the floor for HELD_UP_S or
+    longer: a foot left hovering while the body stands (``floating`` sees the lower toe alone)."""
+    frames = max(1, round(HELD_UP_S * fps))
+    held = np.zeros(len(toes), dtype=bool)
+    for up in (toes[..., 2] - floor > HELD_UP_M).T:
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], up.astype(np.int8), [0]])))
+        for start, end in zip(edges[::2], edges[1::2]):
+            held[start:end] |= end - start >= frames
+    return float(held.mean())
 
 
 def off_balance(joints, toes, floor):

@@ -67,16 +67,21 @@ def test_a_300_frame_shot_with_a_curve_stays_on_the_floor(scene, mannequin):
     scene.frame_end = 300
     curves, _ = shots.wave(mannequin)
     api.bind_curve(mannequin, "RWrist", blender_rigs.curve(scene, "wave", curves["RWrist"]))
-    report = pipeline.generate_variants(mannequin, 2, 0)
+    report = pipeline.generate_variants(mannequin, 5, 0)
     for joints, toes in _played(scene, mannequin, report):
         floor = animation_quality.floor_height(toes)
         lower = toes[..., 2].min(axis=1) - floor
         speed = animation_quality.planted_toe_speed(toes, FPS, floor)
+        held = animation_quality.held_up(toes, floor, FPS)
         print(f"300 frames: lower toe median {100 * np.median(lower):.1f} cm, last 100 frames median "
               f"{100 * np.median(lower[-100:]):.1f} cm, sink {100 * max(0, -lower.min()):.1f} cm, planted toes "
-              f"{speed:.3f} m/s, lean up to {animation_quality.lean_degrees(joints).max():.0f} degrees")
+              f"{speed:.3f} m/s, lean up to {animation_quality.lean_degrees(joints).max():.0f} degrees, a foot "
+              f"held up on {100 * held:.0f} % of frames")
         assert lower.min() >= -0.01 and np.median(lower) <= 0.01 and np.median(lower[-100:]) <= 0.01
-        assert speed <= 0.1
+        # the other foot too: a model trained with the root scored apart (issue 16's f3) left one toe
+        # rising to 10 cm over the 10 s, here on 51 % of the second variant's frames (seeds 0-3 of the
+        # benchmark's wave: 35 % for the worst of five); the shipped weights on none
+        assert speed <= 0.1 and held <= 0.05
     assert all(error < 0.01 for error in report.curve_error_m)
 
 
