@@ -226,7 +226,8 @@ def over_seeds(count):
                      f"; curve's worst frame {100 * worst.mean():.1f} cm (most {100 * worst.max():.1f})")
             print(f"{name} {label} over seeds 0-{count - 1}: lean {lean.mean():.0f} deg (most {lean.max():.0f}), "
                   f"acc {acc.mean():.0f} m/s2 (most {acc.max():.0f}), balance {balance.mean():.1f} cm "
-                  f"(most {balance.max():.1f}), held up {held.mean():.0f} % (most {held.max():.0f}), spread {spread.mean():.3f} m (least {spread.min():.3f}){curve}",
+                  f"(most {balance.max():.1f}), held up {held.mean():.0f} % (most {held.max():.0f}), "
+                  f"spread {spread.mean():.3f} m (least {spread.min():.3f}){curve}",
                   flush=True)
 
 

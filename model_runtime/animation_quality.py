@@ -11,6 +11,7 @@ import itertools
 
 import numpy as np
 
+from .filters import runs
 from .skeleton import JOINT_INDEX, centre_of_mass, facing, hips_roll
 
 J = JOINT_INDEX
@@ -57,9 +58,8 @@ def held_up(toes, floor, fps):
     frames = max(1, round(HELD_UP_S * fps))
     held = np.zeros(len(toes), dtype=bool)
     for up in (toes[..., 2] - floor > HELD_UP_M).T:
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], up.astype(np.int8), [0]])))
-        for start, end in zip(edges[::2], edges[1::2]):
-            held[start:end] |= end - start >= frames
+        for start, end in runs(up):
+            held[start:end + 1] |= end - start + 1 >= frames
     return float(held.mean())
 
 
