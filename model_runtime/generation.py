@@ -226,9 +226,10 @@ def with_rigid_pelvis(motion, reference):
     kept = roll - np.sign(excess) * (beyond - room * np.tanh(beyond / room))  # (V, F)
     ground = across * np.array([1.0, 1.0, 0.0])
     ground /= np.maximum(np.linalg.norm(ground, axis=-1, keepdims=True), 1e-9)
-    half = 0.5 * np.linalg.norm(reference[left] - reference[right]) * (
+    span = reference[left] - reference[right]
+    half = 0.5 * np.linalg.norm(span) * (
         np.cos(kept)[..., None] * ground + np.sin(kept)[..., None] * np.array([0.0, 0.0, 1.0]))
-    start = (reference[left] - reference[right])[:2] / np.linalg.norm((reference[left] - reference[right])[:2])
+    start = span[:2] / np.linalg.norm(span[:2])
     turns = (ground[..., 0] * start[0] + ground[..., 1] * start[1],  # (cos, sin) (V, F) of the pelvis's turn
              start[0] * ground[..., 1] - start[1] * ground[..., 0])
     offset = 0.5 * (reference[left] + reference[right]) - reference[JOINT_INDEX["Hip"]]
