@@ -140,7 +140,8 @@ poses, partial curves, ground paths and waypoints, and {masks.CARRIED_SHARE:.0%}
 pose stands{still} start from a rest pose of their own skeleton (T to A, arms 0-50 degrees down)
 and turn into the capture over 15-30 frames, as rigs start in the add-on. Losses: the
 paper's (squared error, KL; the error in absolute positions where a coordinate is known and, where
-it is not, with {train.get('body_relative_share', 0.0)} x the root's error taken off the other joints' and the root's own
+it is not, with {train.get('body_relative_share', 0.0)} x the root's error taken off the other joints' (off the feet's,
+{1 - train.get('absolute_feet', 0.0)} x that) and the root's own
 at {train.get('unknown_root_weight', 1.0)} x) plus foot contacts (cross-entropy of the predicted contacts
 against labels from the capture's sole height and ankle speed, weight {train['contact_weight']}) and
 GSPS realism on the reconstruction and, at {train['prior_realism_share']} x, on {draws} per window,
@@ -149,10 +150,10 @@ lengths of the rigid bones and torso segments ({train['bone_weight']}), joint-an
 training poses ({train['angle_weight']}),
 squared speed of planted feet ({train['skating_weight']}; on the prior samples {train.get('prior_skating_weight', train['skating_weight'])}, the feet
 they predict planted and those within {train.get('prior_contact_m', FLOOR_CONTACT_M) * 100:.0f} cm of {floor})
-and ankles below the window's floor ({train['floor_weight']}).
+and ankles below the window's floor ({train['floor_weight']}).{_refit(train)}
 Then the second stage: the completion stage alone ({config['completion_layers']} transformer layers) for
 {train['completion_steps']} steps (lr {train['completion_learning_rate']}, warm-up then one cosine decay), from the
-first stage's best validated weights, on their frozen decodes of posterior samples and, for
+last stage's best validated weights, on their frozen decodes of posterior samples and, for
 {train['completion_mean_share']:.0%} of each batch, of the prior mean (squared error of the root and of the
 body relative to it, plus the realism terms, the bone lengths at
 {train.get('completion_bone_weight', train['bone_weight'])} and the joint-angle limits at
@@ -169,6 +170,20 @@ validation best-of-10 ADE {meta['validation_ade_m']:.4f} m.
 {previous}"""
 
 
+# What runs written before a training field existed did, where that is not the field's default now.
+BEFORE_THEIR_FIELDS = {"prior_refit_steps": 0}
+
+
+def _refit(train):
+    """The prior's refit in words ('' where the run had none)."""
+    if not train.get("prior_refit_steps"):
+        return ""
+    return (f"\nThen the prior's refit: the prior branch alone for {train['prior_refit_steps']} steps (lr "
+            f"{train['prior_refit_learning_rate']}, warm-up then one cosine decay), from the first stage's best "
+            f"validated weights, under the same losses with the KL term at {train['prior_refit_beta']} "
+            f"(the first stage's {train['beta']}), so the prior's draws cover what the frozen posterior encodes.")
+
+
 def _flags(train, config):
     """The training command's flags for the fields of a weights file's training and network
     configurations that differ from ``TrainConfig``'s and ``ModelConfig``'s defaults ('' for a
@@ -176,6 +191,7 @@ def _flags(train, config):
     from .model import ModelConfig  # train writes cards: imported here, not at the top
     from .train import TrainConfig
     flags = []
+    train = {**BEFORE_THEIR_FIELDS, **train}
     for values, defaults in ((train, asdict(TrainConfig())), (config, asdict(ModelConfig()))):
         for name, value in values.items():
             if name not in defaults or value == defaults[name]:

@@ -276,6 +276,11 @@ def test_reconstructions_score_the_root_apart_from_the_body():
     scaled = train.body_relative(shift.expand(2, 60, 17, 3), 1.0, 0.3)  # a whole-body shift: the root's row alone
     torch.testing.assert_close(scaled[..., 0, :], 0.3 * shift.expand(2, 60, 3))
     torch.testing.assert_close(scaled[..., 1:, :], torch.zeros(2, 60, 16, 3))
+    feet = train.body_relative(shift.expand(2, 60, 17, 3), 1.0, 1.0, absolute_feet=1.0)  # the feet keep the shift
+    on_feet = torch.zeros(17, dtype=torch.bool)
+    on_feet[[JOINT_INDEX["RFoot"], JOINT_INDEX["LFoot"]]] = True
+    torch.testing.assert_close(feet[..., on_feet, :], shift.expand(2, 60, 2, 3))
+    torch.testing.assert_close(feet[..., ~on_feet, :][..., 1:, :], torch.zeros(2, 60, 14, 3))
 
 
 def test_best_of_many_scores_the_nearest_of_a_windows_prior_draws(validation_windows):
@@ -350,14 +355,17 @@ def test_a_draws_planted_feet_are_found_against_the_window_or_its_own_lowest_ank
     torch.testing.assert_close(wide[on_floor], torch.full_like(wide[on_floor], 0.75))
 
 
-def test_training_runs_checkpoints_resumes_and_its_second_stage_depends_only_on_the_first(tmp_path):
-    """A loss weight given on the command line is the run's; a run resumes into its second stage, which changes the completion stage alone; that second
-    stage is the same from the first stage's saved weights (``--init``, ``--steps 0``) and from a
-    whole model holding that first stage (``--second-stage-from``: its completion stage trained
-    again from the seeded start)."""
+def test_training_runs_checkpoints_resumes_and_its_later_stages_depend_only_on_the_first(tmp_path):
+    """A loss weight given on the command line is the run's; a run resumes into the prior's refit,
+    which changes the prior branch alone, and into its second stage, which changes the completion
+    stage alone; those stages are the same from the first stage's saved weights (``--init``,
+    ``--steps 0``), and the second stage from a whole model holding them (``--second-stage-from``
+    with no refit: its completion stage trained again from the seeded start)."""
     out, checkpoint = tmp_path / "weights", tmp_path / "run.pt"
-    common = ["--out", str(out), "--checkpoint", str(checkpoint), "--batch", "8", "--completion-steps", "0"]
-    assert train.main(["--steps", "2", "--fresh", "--beta", "0.003", "--unknown-root-weight", "0.3"] + common) == 0
+    common = ["--out", str(out), "--checkpoint", str(checkpoint), "--batch", "8"]
+    stages = lambda refit, completion: ["--prior-refit-steps", str(refit), "--completion-steps", str(completion)]
+    assert train.main(["--steps", "2", "--fresh", "--beta", "0.003", "--unknown-root-weight", "0.3"]
+                      + stages(0, 0) + common) == 0
     assert {path.name for path in out.iterdir()} == {weights.MODEL_FILE, weights.LIMITS_FILE, weights.CARD_FILE}
     assert weights.load_state(out / weights.MODEL_FILE)[1]["train"]["beta"] == 0.003  # a loss weight from the command
     assert "root's own\nat 0.3 x" in (out / weights.CARD_FILE).read_text()  # and the card says how it scored
@@ -365,32 +373,40 @@ def test_training_runs_checkpoints_resumes_and_its_second_stage_depends_only_on_
     assert state["step"] == 2
     first_stage = tmp_path / "first_stage.npz"
     shutil.copy(out / weights.MODEL_FILE, first_stage)  # the model at step 2: its one validation is the best
-    common[-1] = "2"
-    assert train.main(["--steps", "2"] + common) == 0  # resumes into the second stage
+
+    def changed(before, after):
+        return {name for name, value in after["model"].items() if not torch.equal(value, before["model"][name])}
+
+    assert train.main(["--steps", "2"] + stages(2, 0) + common) == 0  # resumes into the refit
+    refitted = torch.load(checkpoint, weights_only=True)
+    assert refitted["step"] == 4
+    assert changed(state, refitted) and all(name.startswith(train.PRIOR_BRANCH) for name in changed(state, refitted))
+    assert "the prior's refit: the prior branch alone for 2 steps" in (out / weights.CARD_FILE).read_text()
+    assert train.main(["--steps", "2"] + stages(2, 2) + common) == 0  # resumes into the second stage
     resumed = torch.load(checkpoint, weights_only=True)
-    assert resumed["step"] == 4
-    changed = {name for name, value in resumed["model"].items() if not torch.equal(value, state["model"][name])}
-    assert changed and all(name.startswith("completion_") for name in changed)
-    again = tmp_path / "again.pt"  # the same second stage from the first stage's weights alone
-    assert train.main(["--init", str(first_stage), "--steps", "0", "--completion-steps", "2", "--batch", "8",
-                       "--out", str(tmp_path / "again"), "--checkpoint", str(again)]) == 0
+    assert resumed["step"] == 6
+    assert changed(refitted, resumed) and all(name.startswith("completion_") for name in changed(refitted, resumed))
+    again = tmp_path / "again.pt"  # the same refit and second stage from the first stage's weights alone
+    assert train.main(["--init", str(first_stage), "--steps", "0", "--batch", "8", "--out", str(tmp_path / "again"),
+                       "--checkpoint", str(again)] + stages(2, 2)) == 0
     for name, value in torch.load(again, weights_only=True)["model"].items():
         torch.testing.assert_close(value, resumed["model"][name])
-    whole = tmp_path / "whole.npz"  # that first stage with a trained completion stage: the second stage again
+    whole = tmp_path / "whole.npz"  # that model with a trained completion stage: the second stage again
     shutil.copy(out / weights.MODEL_FILE, whole)
     alone = tmp_path / "alone.pt"
-    assert train.main(["--second-stage-from", str(whole), "--steps", "2", "--completion-steps", "2", "--batch", "8",
-                       "--out", str(tmp_path / "alone"), "--checkpoint", str(alone)]) == 0
+    assert train.main(["--second-stage-from", str(whole), "--steps", "2", "--batch", "8", "--out", str(tmp_path / "alone"),
+                       "--checkpoint", str(alone)] + stages(0, 2)) == 0
     for name, value in torch.load(alone, weights_only=True)["model"].items():
         torch.testing.assert_close(value, resumed["model"][name])
 
 
 def test_the_model_cards_reproduce_line_names_every_setting_off_its_default():
     from model_runtime import model_card
-    train = {"beta": 0.01, "steps": 2000, "prior_floor": "own"}
+    train = {"beta": 0.01, "steps": 2000, "prior_floor": "own", "prior_refit_steps": 1000}
     config = {"width": 128, "feet_lead": True, "facing_frame": False, "dropout": 0.1}
     assert model_card._flags(train, config) == " --steps 2000 --prior-floor own --feet-lead --no-facing-frame --dropout 0.1"
-    assert model_card._flags({"beta": 0.01}, {"width": 128, "feet_lead": False}) == ""
+    assert model_card._flags({"beta": 0.01, "prior_refit_steps": 1000}, {"width": 128, "feet_lead": False}) == ""
+    assert model_card._flags({"beta": 0.01}, {}) == " --prior-refit-steps 0"  # a run from before the refit had none
 
 
 def test_evaluate_prints_and_writes_every_method_and_k(tmp_path, capsys, mocap_root):
