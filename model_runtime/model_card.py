@@ -170,10 +170,6 @@ validation best-of-10 ADE {meta['validation_ade_m']:.4f} m.
 {previous}"""
 
 
-# What runs written before a training field existed did, where that is not the field's default now.
-BEFORE_THEIR_FIELDS = {"prior_refit_steps": 0}
-
-
 def _refit(train):
     """The prior's refit in words ('' where the run had none)."""
     if not train.get("prior_refit_steps"):
@@ -191,7 +187,6 @@ def _flags(train, config):
     from .model import ModelConfig  # train writes cards: imported here, not at the top
     from .train import TrainConfig
     flags = []
-    train = {**BEFORE_THEIR_FIELDS, **train}
     for values, defaults in ((train, asdict(TrainConfig())), (config, asdict(ModelConfig()))):
         for name, value in values.items():
             if name not in defaults or value == defaults[name]:

@@ -402,11 +402,10 @@ def test_training_runs_checkpoints_resumes_and_its_later_stages_depend_only_on_t
 
 def test_the_model_cards_reproduce_line_names_every_setting_off_its_default():
     from model_runtime import model_card
-    train = {"beta": 0.01, "steps": 2000, "prior_floor": "own", "prior_refit_steps": 1000}
+    train = {"beta": 0.01, "steps": 2000, "prior_floor": "own"}
     config = {"width": 128, "feet_lead": True, "facing_frame": False, "dropout": 0.1}
     assert model_card._flags(train, config) == " --steps 2000 --prior-floor own --feet-lead --no-facing-frame --dropout 0.1"
-    assert model_card._flags({"beta": 0.01, "prior_refit_steps": 1000}, {"width": 128, "feet_lead": False}) == ""
-    assert model_card._flags({"beta": 0.01}, {}) == " --prior-refit-steps 0"  # a run from before the refit had none
+    assert model_card._flags({"beta": 0.01}, {"width": 128, "feet_lead": False}) == ""
 
 
 def test_evaluate_prints_and_writes_every_method_and_k(tmp_path, capsys, mocap_root):

@@ -86,7 +86,7 @@ def test_two_processes_train_in_step_and_one_process_resumes_their_checkpoint(tm
     checkpoint = tmp_path / "run.pt"
     common = _data(library) + ["--out", str(tmp_path / "weights"), "--checkpoint", str(checkpoint), "--batch", "4",
                                "--learning-rate", "1e-3", "--warmup", "5", "--log-every", "10", "--completion-steps", "0",
-                               "--prior-refit-steps", "0", "--threads", "1"]
+                               "--threads", "1"]
     two = subprocess.run([sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc_per_node=2",
                           "-m", "model_runtime.train", "--steps", "20", "--fresh"] + common,
                          cwd=ROOT, capture_output=True, text=True, timeout=600)
@@ -116,7 +116,7 @@ def studio_weights(tmp_path_factory, library):
     out = tmp_path_factory.mktemp("studio_weights")
     runs = tmp_path_factory.mktemp("runs")
     assert train.main(_data(library) + ["--init", str(weights.ASSETS), "--out", str(out), "--steps", "3",
-                                        "--prior-refit-steps", "1", "--completion-steps", "1", "--batch", "4", "--dropout", "0", "--checkpoint",
+                                        "--completion-steps", "1", "--batch", "4", "--dropout", "0", "--checkpoint",
                                         str(runs / "model.pt")]) == 0
     assert train_sampler.main(_data(library) + ["--weights", str(out), "--steps", "2", "--batch", "2",
                                                 "--checkpoint", str(runs / "sampler.pt")]) == 0
