@@ -531,17 +531,17 @@ def _train(parser, args, processes):
     pace_since, first_step = (run.step, run.elapsed), run.step
     stage = None
     while run.step < total_steps:
-        if stage != stage_at(run.step, config)[0]:  # start or resume a stage: its trainable set, wrapped
-            stage, stage_start = stage_at(run.step, config)
+        now, start = stage_at(run.step, config)
+        if stage != now:  # start or resume a stage: its trainable set, wrapped
+            stage, stage_start = now, start
             if run.step == stage_start > 0:
                 optimizer.state.clear()  # fresh moments, as in a stage started from saved weights (``--init``)
                 if run.best < float("inf"):
                     from_best_of_last_stage(model, out / weights.MODEL_FILE, run, processes)
             train_stage(model, stage)
             trained = processes.parallel(CompletionStage(model) if stage == COMPLETION_STAGE else model)
-            if stage != FIRST_STAGE and first_stage_minutes is None:
-                first_stage_minutes = run.elapsed / 60
             if stage != FIRST_STAGE:
+                first_stage_minutes = run.elapsed / 60 if first_stage_minutes is None else first_stage_minutes
                 running, pace_since = {}, (run.step, run.elapsed)
         stage_step = run.step - stage_start
         batch = training_batch(sampler, config, model_config.frames, processes.rng(config.seed, stage, stage_step))
