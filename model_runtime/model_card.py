@@ -177,7 +177,9 @@ def _refit(train):
     return (f"\nThen the prior's refit: the prior branch alone for {train['prior_refit_steps']} steps (lr "
             f"{train['prior_refit_learning_rate']}, warm-up then one cosine decay), from the first stage's best "
             f"validated weights, under the same losses with the KL term at {train['prior_refit_beta']} "
-            f"(the first stage's {train['beta']}), so the prior's draws cover what the frozen posterior encodes.")
+            f"(the first stage's {train['beta']}), so the prior's draws cover what the frozen posterior encodes, "
+            f"and the draws' realism at {train.get('prior_refit_realism_share', train['prior_realism_share'])} x "
+            f"(their planted feet's speed at {train.get('prior_refit_skating_weight', train['prior_skating_weight'])}).")
 
 
 def _flags(train, config):

@@ -356,14 +356,15 @@ def test_a_draws_planted_feet_are_found_against_the_window_or_its_own_lowest_ank
 
 
 def test_training_runs_checkpoints_resumes_and_its_later_stages_depend_only_on_the_first(tmp_path):
-    """A loss weight given on the command line is the run's; a run resumes into the prior's refit,
+    """A loss weight given on the command line is the run's (the refit's too); a run resumes into the prior's refit,
     which changes the prior branch alone, and into its second stage, which changes the completion
     stage alone; those stages are the same from the first stage's saved weights (``--init``,
     ``--steps 0``), and the second stage from a whole model holding them (``--second-stage-from``
     with no refit: its completion stage trained again from the seeded start)."""
     out, checkpoint = tmp_path / "weights", tmp_path / "run.pt"
     common = ["--out", str(out), "--checkpoint", str(checkpoint), "--batch", "8"]
-    stages = lambda refit, completion: ["--prior-refit-steps", str(refit), "--completion-steps", str(completion)]
+    stages = lambda refit, completion: ["--prior-refit-steps", str(refit), "--completion-steps", str(completion),
+                                        "--prior-refit-skating-weight", "0.25"]
     assert train.main(["--steps", "2", "--fresh", "--beta", "0.003", "--unknown-root-weight", "0.3"]
                       + stages(0, 0) + common) == 0
     assert {path.name for path in out.iterdir()} == {weights.MODEL_FILE, weights.LIMITS_FILE, weights.CARD_FILE}
@@ -381,7 +382,9 @@ def test_training_runs_checkpoints_resumes_and_its_later_stages_depend_only_on_t
     refitted = torch.load(checkpoint, weights_only=True)
     assert refitted["step"] == 4
     assert changed(state, refitted) and all(name.startswith(train.PRIOR_BRANCH) for name in changed(state, refitted))
-    assert "the prior's refit: the prior branch alone for 2 steps" in (out / weights.CARD_FILE).read_text()
+    card = (out / weights.CARD_FILE).read_text()
+    assert "the prior's refit: the prior branch alone for 2 steps" in card
+    assert "(their planted feet's speed at 0.25)" in card  # the refit's own weight from the command
     assert train.main(["--steps", "2"] + stages(2, 2) + common) == 0  # resumes into the second stage
     resumed = torch.load(checkpoint, weights_only=True)
     assert resumed["step"] == 6
