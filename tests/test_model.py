@@ -263,7 +263,7 @@ def test_completing_the_prior_mean_brings_its_end_pose_closer(model, all_clips, 
 def test_reconstructions_score_the_root_apart_from_the_body():
     """A whole body off by d is one root error, d^2 per frame; the same error on one joint alone
     is that joint's, relative to the root. At share 0 the first stage scores absolute positions; a
-    root weight scales the root's row alone."""
+    root weight scales the root's row alone, a height scale its height on top."""
     truth = torch.randn(2, 60, 17, 3)
     shift = torch.tensor([0.1, -0.2, 0.05])
     torch.testing.assert_close(train.root_and_body_error(truth + shift, truth),
@@ -281,6 +281,8 @@ def test_reconstructions_score_the_root_apart_from_the_body():
     on_feet[[JOINT_INDEX["RFoot"], JOINT_INDEX["LFoot"]]] = True
     torch.testing.assert_close(feet[..., on_feet, :], shift.expand(2, 60, 2, 3))
     torch.testing.assert_close(feet[..., ~on_feet, :][..., 1:, :], torch.zeros(2, 60, 14, 3))
+    height = train.body_relative(shift.expand(2, 60, 17, 3), 1.0, 0.5, root_height_scale=4.0)  # the root's height alone
+    torch.testing.assert_close(height[..., 0, :], (shift * torch.tensor([0.5, 0.5, 2.0])).expand(2, 60, 3))
 
 
 def test_best_of_many_scores_the_nearest_of_a_windows_prior_draws(validation_windows):
