@@ -142,8 +142,9 @@ and turn into the capture over 15-30 frames, as rigs start in the add-on. Losses
 paper's (squared error, KL; the error in absolute positions where a coordinate is known and, where
 it is not, with {train.get('body_relative_share', 0.0)} x the root's error taken off the other joints' (off the feet's,
 {1 - train.get('absolute_feet', 0.0)} x that) and the root's own
-at {train.get('unknown_root_weight', 1.0)} x, its height at {train.get('unknown_root_height_scale', 1.0)} x that) plus foot contacts (cross-entropy of the predicted contacts
-against labels from the capture's sole height and ankle speed, weight {train['contact_weight']}) and
+at {train.get('unknown_root_weight', 1.0)} x, its height at {train.get('unknown_root_height_scale', 1.0)} x that)
+plus foot contacts (cross-entropy of the predicted contacts against labels from the capture's sole
+height and ankle speed, weight {train['contact_weight']}) and
 GSPS realism on the reconstruction and, at {train['prior_realism_share']} x, on {draws} per window,
 whose squared error on the known coordinates also counts ({train['prior_known_weight']} x){best_of}:
 lengths of the rigid bones and torso segments ({train['bone_weight']}), joint-angle limits fitted on the
