@@ -84,7 +84,8 @@ class TrainConfig:
     # Their skating term leans bodies: draws that may not slide a planted foot lean forward and lift a
     # foot instead. f3's first stage, refitted with its draws' realism at 0.5 and skating 1: their chest
     # 0.042 m ahead of the hips at the last frame, with nothing given, where the capture's is 0.004;
-    # with skating 0, 0.014; with no realism at all, 0.009, but 2.6 % of frames off the joint-angle limits.
+    # with skating 0, 0.014; with no realism at all, 0.009, but after the completion stage 2.6 % of its
+    # frames at k = 0 off the joint-angle limits (f3c).
     prior_refit_realism_share: float = 0.5
     prior_refit_skating_weight: float = 1.0
     completion_learning_rate: float = 3e-4  # warm-up, then one cosine decay
