@@ -140,9 +140,9 @@ def steps(toes, floor):
 
 
 def lean_degrees(joints):
-    """Per frame, the angle (F,) of Hip -> Thorax from vertical, degrees."""
-    up = joints[:, J["Thorax"]] - joints[:, J["Hip"]]
-    return np.degrees(np.arccos(np.clip(up[:, 2] / np.linalg.norm(up, axis=-1), -1.0, 1.0)))
+    """Per pose, the angle (...) of Hip -> Thorax from vertical, degrees: (..., 17, 3) -> (...)."""
+    up = joints[..., J["Thorax"], :] - joints[..., J["Hip"], :]
+    return np.degrees(np.arccos(np.clip(up[..., 2] / np.linalg.norm(up, axis=-1), -1.0, 1.0)))
 
 
 def roll_degrees(joints):

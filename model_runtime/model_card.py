@@ -48,8 +48,9 @@ stretch and joint angles outside the limits). "trajevae_posterior" decodes
 the posterior's mean, which sees the future: an oracle, what the latents carry at all. "sampler" is what the add-on ships: the
 diverse Gumbel-softmax sampler over the frozen model ({weights.SAMPLER_FILE}), its K variants
 picked from a pool of {selection.POOL_FACTOR}K sampler draws and {selection.PRIOR_POOL_FACTOR}K prior draws (the least
-plausible {selection.SCREENED_SHARE:.0%} dropped, then the widest spacing that typical-first picking
-allows). Rows prefixed "bundled:" are the bundled weights on the same windows.
+plausible {selection.SCREENED_SHARE:.0%} dropped and, with no trajectories, the
+{selection.LEAN_SCREENED_SHARE:.0%} bent over furthest beyond the start pose, then the widest spacing that
+typical-first picking allows). Rows prefixed "bundled:" are the bundled weights on the same windows.
 k = number of trajectories given, in the order RFoot, LFoot, RWrist, LWrist.
 Run in {evaluation['seconds']:.0f} s with `python -m model_runtime.evaluate`.
 

@@ -31,13 +31,18 @@ numpy only, so Blender needs no torch.
 import numpy as np
 
 from . import joint_angles, metrics
-from .animation_quality import mean_joint_distances
+from .animation_quality import lean_degrees, mean_joint_distances
 from .masks import per_coordinate
 from .skeleton import JOINT_INDEX, LIMBS, limb_length, rigid_bone_lengths
 
 POOL_FACTOR = 5  # diverse sampler draws per variant asked for
 PRIOR_POOL_FACTOR = 5  # plain prior draws per variant added to the diverse sampler's pool
 SCREENED_SHARE = 0.25  # least plausible share of the pool dropped before selection
+# ... and then, where no joint is given, the share of the pool bent over furthest beyond the start pose
+# (``leaning``): the diverse sampler spreads its draws partly into a forward bend that nothing asked
+# for. Where curves are given they hold the body, and the screen only narrowed the variants (a reach's
+# 0.151 / 0.184 m apart on the mannequin / Rigify came to 0.128 / 0.168); see "Leaning variants" in README.md
+LEAN_SCREENED_SHARE = 0.1
 GIVEN_POOL_FACTOR = 2  # prior draws per variant where joints are given (``most_plausible``)
 ANGLE_WEIGHT = 2.0  # cost of one joint angle outside its limits on every frame (a pool-median stretch costs 1)
 PLAYED_POOL = 15  # candidates a shot carries to the end, at the least, to pick its variants from as played
@@ -230,9 +235,19 @@ def most_plausible(candidates, initial, count, given=None, known=None, limits=No
     return np.argsort(implausibility(candidates, initial, given, known, limits), kind="stable")[:count]
 
 
+def leaning(candidates, initial):
+    """Per candidate (P,): the mean over its frames of how far (degrees) the hips-to-thorax line of
+    candidates (P, T, 17, 3) leans from vertical beyond that of the initial pose (17, 3)."""
+    return np.maximum(lean_degrees(candidates) - lean_degrees(initial), 0.0).mean(axis=1)
+
+
 def distinct_plausible(candidates, initial, count, given=None, known=None, limits=None):
     """Indices (count,) into candidates (P, T, 17, 3), P >= count: the implausible share dropped,
-    then ``typical_first_spread``. Arguments as ``implausibility``."""
+    then, where no joint is given, the share bent over furthest (``LEAN_SCREENED_SHARE``), then
+    ``typical_first_spread``. Arguments as ``implausibility``."""
     kept = max(count, len(candidates) - int(round(SCREENED_SHARE * len(candidates))))
     order = most_plausible(candidates, initial, kept, given, known, limits)
+    if known is None or not known.any():
+        upright = max(count, kept - int(round(LEAN_SCREENED_SHARE * len(candidates))))
+        order = order[np.sort(np.argsort(leaning(candidates[order], initial), kind="stable")[:upright])]
     return order[typical_first_spread(candidates[order], count)]

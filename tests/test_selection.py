@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from model_runtime import animation_quality, joint_angles, metrics, realism, selection
-from model_runtime.skeleton import JOINT_INDEX
+from model_runtime.rotations import turned
+from model_runtime.skeleton import JOINT_INDEX, UPPER_BODY, indices
 from model_runtime.data import dataset
 
 
@@ -71,6 +72,30 @@ def test_a_body_outside_the_joint_limits_is_screened_out(pool):
     assert cost[-1] > cost[:-1].max()
     assert len(with_bad) - 1 not in selection.most_plausible(with_bad, initial, 9, limits=limits)
     assert len(with_bad) - 1 in selection.most_plausible(with_bad, initial, 9)
+
+
+def test_a_body_bent_over_that_nothing_asked_for_is_screened_out(pool, monkeypatch):
+    """A candidate whose torso, head and arms are turned 30 degrees about the hip joint on every
+    frame (a bow; every bone keeps its length, so it is as plausible as itself upright) leans the
+    furthest beyond the start pose, and is not picked; without the lean screen it is."""
+    candidates, initial = pool
+    upright = candidates[3]
+    hips = upright[:, JOINT_INDEX["Hip"]]
+    side = upright[:, JOINT_INDEX["LHip"]] - upright[:, JOINT_INDEX["RHip"]]
+    side[:, 2] = 0.0
+    side /= np.linalg.norm(side, axis=-1, keepdims=True)
+    upper = indices(UPPER_BODY)
+    bowed = upright.copy()
+    bow = np.full(len(side), np.radians(30.0))
+    bowed[:, upper] = hips[:, None] + turned(upright[:, upper] - hips[:, None], side, bow)
+    with_bad = np.concatenate([candidates, bowed[None]])
+    lean = selection.leaning(with_bad, initial)
+    assert lean[-1] - lean[3] > 15.0 and lean[-1] == lean.max()
+    cost = selection.implausibility(with_bad, initial)
+    assert cost[-1] == pytest.approx(cost[3], rel=0.02)
+    assert len(with_bad) - 1 not in selection.distinct_plausible(with_bad, initial, 6)
+    monkeypatch.setattr(selection, "LEAN_SCREENED_SHARE", 0.0)
+    assert len(with_bad) - 1 in selection.distinct_plausible(with_bad, initial, 6)
 
 
 def test_variants_are_picked_as_played_and_never_one_that_misses_its_hand_curve(pool):
