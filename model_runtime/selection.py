@@ -9,7 +9,9 @@ likely motion. The pool comes through the completion stage, with its known
 joints as decoded. It drops the ``SCREENED_SHARE`` that is least plausible
 (rigid bones stretched relative to the rest of the pool, straying from the
 given curves and keys, joints bent outside the limits fitted on the training
-data) and keeps N of the rest by ``typical_first_spread``: the
+data) and, where no joint is given, the ``LEAN_SCREENED_SHARE`` bent over furthest
+beyond the start pose (the sampler's draws lean as a set), and keeps N of the rest
+by ``typical_first_spread``: the
 widest spacing at which candidates taken from the most typical outwards still
 make N. On the validation subjects (k = 0, shipped weights, K = 10 and 50)
 that keeps the sampler's spread (minimum pairwise distance 2.3x plain
