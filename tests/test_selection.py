@@ -5,7 +5,7 @@ import pytest
 
 from model_runtime import animation_quality, joint_angles, metrics, realism, selection
 from model_runtime.rotations import turned
-from model_runtime.skeleton import JOINT_INDEX, UPPER_BODY, indices
+from model_runtime.skeleton import JOINT_INDEX, UP_AXIS, UPPER_BODY, facing, indices
 from model_runtime.data import dataset
 
 
@@ -81,9 +81,7 @@ def test_a_body_bent_over_that_nothing_asked_for_is_screened_out(pool, monkeypat
     candidates, initial = pool
     upright = candidates[3]
     hips = upright[:, JOINT_INDEX["Hip"]]
-    side = upright[:, JOINT_INDEX["LHip"]] - upright[:, JOINT_INDEX["RHip"]]
-    side[:, 2] = 0.0
-    side /= np.linalg.norm(side, axis=-1, keepdims=True)
+    side = np.cross(UP_AXIS, facing(upright))  # the hip line's horizontal direction, right to left
     upper = indices(UPPER_BODY)
     bowed = upright.copy()
     bow = np.full(len(side), np.radians(30.0))
