@@ -20,7 +20,8 @@ fitted to the capture, prior draws are fitted to what is given and to the
 realism terms with as little displacement as that takes
 (``completion_losses``); ``--second-stage-from`` trains the stages after the
 first (the refit where asked, and the completion stage) again on the first
-stage of a saved model. Each step's
+stage of a saved model, such as the first stage's best weights a run keeps
+beside its checkpoint (``first_stage_file``). Each step's
 random draws come from the seed, the stage and the step
 (``distributed.Processes.rng``), so a run resumes exactly from its checkpoint,
 with any number of processes, and a second stage started from a first stage's
@@ -40,6 +41,7 @@ torchrun the same command trains data-parallel (``distributed``).
 import argparse
 import json
 import math
+import shutil
 import sys
 import time
 from dataclasses import asdict, dataclass, fields, replace
@@ -398,6 +400,20 @@ def from_best_of_last_stage(model, best_file, run, processes):
     processes.say(f"step {run.step}: from the last stage's best weights ({best_file})")
 
 
+def first_stage_file(checkpoint):
+    """Where a run keeps its first stage's best weights: beside its checkpoint, out of the weights folder."""
+    return Path(checkpoint).with_name(Path(checkpoint).stem + "-first-stage.npz")
+
+
+def keep_first_stage(best_file, kept, processes):
+    """Copy the first stage's best weights (``best_file``) to ``kept`` before the later stages replace
+    them: ``--second-stage-from`` on that file trains other refits and completion stages on the same
+    first stage in minutes, where running it again took 41."""
+    kept.parent.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(best_file, kept)
+    processes.say(f"the first stage's best weights kept at {kept} (--second-stage-from trains later stages on them)")
+
+
 def with_fresh_completion_stage(state, model):
     """``state`` (a saved model's) with the completion stage's parameters of the freshly seeded
     ``model``, in place: the first stage's best weights as a whole run hands them to its later
@@ -554,6 +570,8 @@ def _train(parser, args, processes):
             if run.step == stage_start > 0:
                 optimizer.state.clear()  # fresh moments, as in a stage started from saved weights (``--init``)
                 if run.best < float("inf"):
+                    if run.step == config.steps and processes.main:
+                        keep_first_stage(out / weights.MODEL_FILE, first_stage_file(checkpoint), processes)
                     from_best_of_last_stage(model, out / weights.MODEL_FILE, run, processes)
             train_stage(model, stage)
             trained = processes.parallel(CompletionStage(model) if stage == COMPLETION_STAGE else model)

@@ -360,7 +360,7 @@ def test_a_draws_planted_feet_are_found_against_the_window_or_its_own_lowest_ank
 def test_training_runs_checkpoints_resumes_and_its_later_stages_depend_only_on_the_first(tmp_path):
     """A loss weight given on the command line is the run's (the refit's too); a run resumes into the prior's refit,
     which changes the prior branch alone, and into its second stage, which changes the completion
-    stage alone; those stages are the same from the first stage's saved weights (``--init``,
+    stage alone; those stages are the same from the first stage's weights the run kept (``--init``,
     ``--steps 0``), and the second stage from a whole model holding them (``--second-stage-from``
     with no refit: its completion stage trained again from the seeded start)."""
     out, checkpoint = tmp_path / "weights", tmp_path / "run.pt"
@@ -384,6 +384,9 @@ def test_training_runs_checkpoints_resumes_and_its_later_stages_depend_only_on_t
     refitted = torch.load(checkpoint, weights_only=True)
     assert refitted["step"] == 4
     assert changed(state, refitted) and all(name.startswith(train.PRIOR_BRANCH) for name in changed(state, refitted))
+    kept = train.first_stage_file(checkpoint)  # the first stage's best, kept beside the checkpoint as the refit began
+    for name, value in weights.load_state(kept)[0].items():
+        torch.testing.assert_close(value, weights.load_state(first_stage)[0][name])
     card = (out / weights.CARD_FILE).read_text()
     assert "the prior's refit: the prior branch alone for 2 steps" in card
     assert "(their planted feet's speed at 0.25)" in card  # the refit's own weight from the command
@@ -392,7 +395,7 @@ def test_training_runs_checkpoints_resumes_and_its_later_stages_depend_only_on_t
     assert resumed["step"] == 6
     assert changed(refitted, resumed) and all(name.startswith("completion_") for name in changed(refitted, resumed))
     again = tmp_path / "again.pt"  # the same refit and second stage from the first stage's weights alone
-    assert train.main(["--init", str(first_stage), "--steps", "0", "--batch", "8", "--out", str(tmp_path / "again"),
+    assert train.main(["--init", str(kept), "--steps", "0", "--batch", "8", "--out", str(tmp_path / "again"),
                        "--checkpoint", str(again)] + stages(2, 2)) == 0
     for name, value in torch.load(again, weights_only=True)["model"].items():
         torch.testing.assert_close(value, resumed["model"][name])
