@@ -24,9 +24,9 @@ from . import selection
 from .data.clips import NATIVE_FPS
 from .augment import rotate_about_z
 from .filters import smooth, smoothstep
-from .masks import per_coordinate
+from .masks import carried_legs, per_coordinate
 from .retarget import steady_across
-from .skeleton import (FEET, JOINT_INDEX, JOINT_NAMES, LIMBS, LOWER_BODY, PARENTS, UPPER_BODY, elevation, facing,
+from .skeleton import (FEET, JOINT_INDEX, JOINT_NAMES, LIMBS, PARENTS, UPPER_BODY, elevation, facing,
                        hips_roll, indices, lower_ankle_height, turned)
 
 # Hip-knee-ankle length of the training subjects (metres, 201 clips: 0.796 to
@@ -277,9 +277,7 @@ def generate(model, initial, trajectories, mask, count, rng, diversity=1.0, samp
     motion[:, 0] = initial
     planted = None
     standing = lower_ankle_height(initial)
-    carry = np.zeros((17, 3), np.float32)  # what a later window carries: the legs, the hips' horizontal position
-    carry[indices(LOWER_BODY)] = 1.0
-    carry[JOINT_INDEX["Hip"], 2] = 0.0
+    carry = carried_legs()
     for start, frames, carried in windows(total, window, overlap):
         done = start + carried  # frames already generated
         given = np.zeros((count, window, 17, 3), np.float32)

@@ -11,13 +11,13 @@ coordinates of each joint (``per_coordinate``).
 
 import numpy as np
 
-from .skeleton import FEET, JOINT_INDEX, NUM_JOINTS, indices
+from .skeleton import FEET, JOINT_INDEX, LOWER_BODY, NUM_JOINTS, indices
 
 EVALUATION_ORDER = ("RFoot", "LFoot", "RWrist", "LWrist")
 ROOT = JOINT_INDEX["Hip"]
 BERNOULLI_KEEP = 0.15  # the paper: each joint masked with p = 0.85, for all frames
-# Share of training masks whose first 1-CARRIED_FRAMES frames are whole known poses: a later window
-# of a long shot, which carries the previous window's last frames (``generation.generate``).
+# Share of training masks whose first 1-CARRIED_FRAMES frames are carried: a later window of a long
+# shot, which carries the previous window's last frames (``generation.generate``).
 CARRIED_SHARE = 0.15
 CARRIED_FRAMES = 20
 HORIZONTAL = np.array([1.0, 1.0, 0.0], np.float32)  # the ground plane's coordinates
@@ -25,6 +25,16 @@ HORIZONTAL = np.array([1.0, 1.0, 0.0], np.float32)  # the ground plane's coordin
 # evaluation order's curves, sparse keys, end poses, partial curves, ground paths, waypoints.
 FAMILY_SHARES = (0.30, 0.22, 0.13, 0.13, 0.08, 0.10, 0.04)
 GAIT_SPREAD_FRAMES = 15  # each side of a frame: a gait cycle takes about 1 s at 30 fps (``body_steps``)
+
+
+def carried_legs():
+    """What a later window of a long shot carries on each carried frame (17, 3): the legs and the
+    hips' horizontal position; the upper body and the hips' height start afresh
+    (``generation.anchored``)."""
+    carry = np.zeros((NUM_JOINTS, 3), np.float32)
+    carry[indices(LOWER_BODY)] = 1.0
+    carry[ROOT, 2] = 0.0
+    return carry
 
 
 def per_coordinate(mask):
@@ -148,10 +158,11 @@ def evaluation_mask(k, frames):
     return trajectory_mask(EVALUATION_ORDER[:k], frames)
 
 
-def sample_training_masks(batch, frames, rng, curve_share=FAMILY_SHARES[1]):
+def sample_training_masks(batch, frames, rng, curve_share=FAMILY_SHARES[1], carried_legs_share=0.0):
     """A batch of training masks (B, T, J, 3) drawn from all families, ``CARRIED_SHARE`` of them
-    continuing a previous window; ``curve_share`` of them the evaluation order's curves (the other
-    families keep their proportions)."""
+    continuing a previous window (whole poses carried, or for ``carried_legs_share`` of them what a
+    long shot carries, ``carried_legs``); ``curve_share`` of them the evaluation order's curves (the
+    other families keep their proportions)."""
     masks = np.zeros((batch, frames, NUM_JOINTS, 3), dtype=np.float32)
     shares = np.array(FAMILY_SHARES) * (1.0 - curve_share) / (1.0 - FAMILY_SHARES[1])
     shares[1] = curve_share
@@ -183,5 +194,7 @@ def sample_training_masks(batch, frames, rng, curve_share=FAMILY_SHARES[1]):
             mask[rng.choice(frames, size=rng.integers(1, 5), replace=False), hip, :2] = 1.0
             mask[-1, hip, :2] = 1.0
         if rng.random() < CARRIED_SHARE:
-            mask[:rng.integers(1, CARRIED_FRAMES + 1)] = 1.0
+            carried = rng.integers(1, CARRIED_FRAMES + 1)
+            legs_only = carried_legs_share > 0 and rng.random() < carried_legs_share  # no draw at 0: runs repeat
+            mask[:carried] = np.maximum(mask[:carried], carried_legs()) if legs_only else 1.0
     return masks

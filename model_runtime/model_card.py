@@ -137,7 +137,7 @@ Parameters: {meta['parameters']:,}. Training: {train['steps']} steps planned, ba
 beta {train['beta']}, random turns about Z{facing} and mirroring, seed {train['seed']}; masks mix the
 paper's Bernoulli trajectories (p = 0.85 masked), the evaluation order, sparse keys, end
 poses, partial curves, ground paths and waypoints, and {masks.CARRIED_SHARE:.0%} of them carry their first
-1-{masks.CARRIED_FRAMES} frames whole, as a long shot's later windows do. {train['rest_start_share']:.0%} of the windows whose first
+1-{masks.CARRIED_FRAMES} frames{_carried(train)}. {train['rest_start_share']:.0%} of the windows whose first
 pose stands{still} start from a rest pose of their own skeleton (T to A, arms 0-50 degrees down)
 and turn into the capture over 15-30 frames, as rigs start in the add-on. Losses: the
 paper's (squared error, KL; the error in absolute positions where a coordinate is known and, where
@@ -182,6 +182,17 @@ def _refit(train):
             f"(the first stage's {train['beta']}), so the prior's draws cover what the frozen posterior encodes, "
             f"and the draws' realism at {train.get('prior_refit_realism_share', train['prior_realism_share'])} x "
             f"(their planted feet's speed at {train.get('prior_refit_skating_weight', train['prior_skating_weight'])}).")
+
+
+def _carried(train):
+    """How the card's training masks carry a previous window's frames (``masks.carried_legs``)."""
+    share = train.get("carried_legs_share", 0.0)
+    legs = "the legs and the hips' horizontal position only, as a long shot's later windows carry them"
+    if share >= 1.0:
+        return f" with {legs}"
+    if share > 0.0:
+        return f" whole, or for {share:.0%} of them {legs}"
+    return " whole (a long shot's later windows carry the legs and the hips' horizontal position only)"
 
 
 def _flags(train, config):

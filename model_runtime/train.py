@@ -129,6 +129,9 @@ class TrainConfig:
     rest_start_still_m: float = 0.0  # ... among those whose feet stand still (``augment.still_through_blend``; 0: any)
     mirror_probability: float = 0.5
     curve_mask_share: float = masks.FAMILY_SHARES[1]  # of training masks, the evaluation order's curves
+    # Of the masks that carry a previous window's frames, those that carry what a long shot's later
+    # window does (``masks.carried_legs``: the legs and the hips' horizontal position), not whole poses.
+    carried_legs_share: float = 0.0
     seed: int = 0
     validate_every: int = 500
     checkpoint_every: int = 250
@@ -172,7 +175,7 @@ def training_batch(sampler, config, frames, rng):
     motion[flip], soles[flip] = augment.mirror(motion[flip]), soles[flip][..., ::-1]
     motion = augment.rotate_about_z(motion, rng.uniform(0, 2 * np.pi, config.batch)).astype(np.float32)
     contacts = foot_contacts(motion, soles, clips.NATIVE_FPS)[:, 1:].astype(np.float32)
-    mask = masks.sample_training_masks(config.batch, frames, rng, config.curve_mask_share)
+    mask = masks.sample_training_masks(config.batch, frames, rng, config.curve_mask_share, config.carried_legs_share)
     return torch.from_numpy(motion), torch.from_numpy(mask), torch.from_numpy(contacts)
 
 

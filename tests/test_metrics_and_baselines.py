@@ -84,6 +84,25 @@ def test_training_masks_cover_every_family():
     assert np.array_equal(partial.any(axis=(1, 2)), ground.any(axis=1))  # only the hips go by coordinate
 
 
+def test_training_masks_can_carry_what_a_long_shots_later_window_carries():
+    """At ``carried_legs_share`` 1 the masks that carry a previous window's frames give the legs and
+    the hips' horizontal position there (``masks.carried_legs``, as ``generation.generate`` carries
+    them), the hips' height left to the model, not whole poses; at 0 (the default) the masks are the
+    default's."""
+    def batch(share):
+        return masks.sample_training_masks(400, 60, np.random.default_rng(0), carried_legs_share=share)
+
+    np.testing.assert_array_equal(batch(0.0), masks.sample_training_masks(400, 60, np.random.default_rng(0)))
+    carry = masks.carried_legs()
+    assert carry[masks.ROOT].tolist() == [1.0, 1.0, 0.0] and carry.sum() == 6 * 3 + 2
+    legs_without_height = lambda masks_: ((masks_[:, 0] >= carry).all(axis=(1, 2))
+                                          & (masks_[:, 0, masks.ROOT, 2] == 0)).sum()
+    whole_first_pose = lambda masks_: masks_.all(axis=(2, 3))[:, 0].sum()
+    legs, whole = batch(1.0), batch(0.0)
+    assert legs_without_height(legs) > 30 and legs_without_height(whole) < 5  # about CARRIED_SHARE of 400
+    assert whole_first_pose(legs) < whole_first_pose(whole) / 5  # only where a key happens to give one
+
+
 def test_baselines_pin_given_joints_and_match_their_own_data(all_clips):
     windows = dataset.windows(all_clips[:3], future=60, stride=20)
     mask = masks.evaluation_mask(2, 60)
