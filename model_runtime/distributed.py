@@ -73,15 +73,19 @@ class Processes:
             raise RuntimeError(f"the training processes' weights differ after step {step}")
 
     def close(self):
+        """Close the process group once every process has finished its work. A process that closed
+        it while rank 0 still validated and wrote its files aborted in gloo's teardown (SIGABRT,
+        "terminate called without an active exception"; once in CI)."""
         if self.world > 1:
+            dist.barrier()
             dist.destroy_process_group()
 
 
 def run(train, parser, args):
-    """``train(parser, args, processes)`` in this process's place among the training processes;
-    the process group is closed after, however it ends."""
+    """``train(parser, args, processes)`` in this process's place among the training processes,
+    the process group closed after it. Not after a failure: closing waits for every process, and one
+    that failed leaves the others in a collective, which torchrun ends once this one exits."""
     processes = Processes()
-    try:
-        return train(parser, args, processes)
-    finally:
-        processes.close()
+    result = train(parser, args, processes)
+    processes.close()
+    return result
